@@ -1,0 +1,35 @@
+# Two user-facing targets: `make demo` and `make test`. Both bootstrap .venv idempotently:
+# a second run finds the stamp newer than pyproject.toml and installs nothing.
+PYTHON ?= python3.11
+VENV := .venv
+PY := $(VENV)/bin/python
+BASE_STAMP := $(VENV)/.installed-base
+DEV_STAMP := $(VENV)/.installed-dev
+PYTEST_ARGS ?=
+
+.PHONY: demo test
+
+demo: $(BASE_STAMP)
+	$(VENV)/bin/touchanything demo
+
+test: $(DEV_STAMP) xvfb
+	$(PY) -m pytest $(PYTEST_ARGS)
+
+$(VENV)/bin/python:
+	$(PYTHON) -m venv $(VENV)
+
+$(BASE_STAMP): pyproject.toml | $(VENV)/bin/python
+	$(PY) -m pip install --quiet -e .
+	touch $@
+
+$(DEV_STAMP): pyproject.toml $(BASE_STAMP)
+	$(PY) -m pip install --quiet -e '.[dev]'
+	touch $@
+
+# The dashboard tests need an X virtual framebuffer; install it when missing and running as root.
+.PHONY: xvfb
+xvfb:
+	@command -v Xvfb >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" = 0 ]; then \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq xvfb xauth >/dev/null; \
+	  else echo "note: Xvfb is not installed (apt-get install xvfb xauth); dashboard tests will be skipped"; fi; }

@@ -1,0 +1,1 @@
+"""Command line and session wiring for TouchAnything Live."""

@@ -1,0 +1,34 @@
+"""`touchanything` command line: one sub-command per job; user errors print one line, exit status 2."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from app import convert_command, demo_command, grids_command, info_command, split_command
+from devices.errors import UserError
+
+COMMANDS = (demo_command, info_command, convert_command, split_command, grids_command)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="touchanything", description=__doc__.splitlines()[0])
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for command in COMMANDS:
+        command.add_parser(commands)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except UserError as exc:
+        print(f"touchanything {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"touchanything {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

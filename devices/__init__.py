@@ -1,0 +1,1 @@
+"""Sources of samples: episode files, replay, the simulated rig and (later) live hardware adapters."""

@@ -1,0 +1,23 @@
+"""User-facing errors: the command line prints their message as one line, without a traceback."""
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class UserError(Exception):
+    """A problem with the user's input (path, file contents, option, absent device)."""
+
+
+def describe(path: str | Path, field: str | None, problem: str) -> str:
+    """One line naming the file, the field (when there is one) and what is wrong."""
+    return f"{path}: {field}: {problem}" if field else f"{path}: {problem}"
+
+
+class DataError(UserError):
+    """A file that is missing, unreadable, or holds a field of the wrong shape, dtype or value."""
+
+    def __init__(self, path: str | Path, field: str | None, problem: str) -> None:
+        super().__init__(describe(path, field, problem))
+        self.path = Path(path)
+        self.field = field
+        self.problem = problem

@@ -1,0 +1,44 @@
+"""The Snapshot record: everything the rig knows at one 30 Hz tick, and the official stream names."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+VIEW_NAMES = ("ego", "wrist_left", "wrist_right")
+"""Camera views in the official order (the model's `views` dict keys)."""
+
+HANDS = ("left", "right")
+TRACKER_ROLES = ("chest", "left_wrist", "right_wrist")
+FPS = 30
+FRAME_PERIOD_US = 1_000_000 // FPS
+"""Official synthetic timestamps: t_i = i * 33333 µs."""
+
+
+@dataclass
+class Snapshot:
+    """One tick of the rig.
+
+    frame_index: episode frame (replay) or tick counter (live).
+    t_us: capture time on the host monotonic clock in µs; latency = now − t_us.
+    images: {view: (H, W, 3) uint8 RGB} for the views present.
+    joints: (42, 3) float32, left 0–20 then right 21–41 in the official joint order, in the frame of the
+        selected pose source (WiLoR: head-camera frame); an invalid hand holds zeros.
+    joints_valid: (2,) bool per hand [left, right].
+    pressure_raw: (2, 256) uint8 raw glove vectors, when a glove stream exists.
+    pressure_grid: (2, 21, 21) float32 ground truth in [0, 1], NaN outside the layout, when known.
+    imu_wxyz: (2, 4) float32 glove quaternions (w, x, y, z), when known.
+    trackers: {role: (7,) float32 trans + rot}.
+    source_status: {source: short human-readable status}.
+    """
+
+    frame_index: int
+    t_us: int
+    images: dict[str, np.ndarray]
+    joints: np.ndarray
+    joints_valid: np.ndarray
+    pressure_raw: np.ndarray | None = None
+    pressure_grid: np.ndarray | None = None
+    imu_wxyz: np.ndarray | None = None
+    trackers: dict[str, np.ndarray] = field(default_factory=dict)
+    source_status: dict[str, str] = field(default_factory=dict)

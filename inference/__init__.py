@@ -1,0 +1,1 @@
+"""TouchAnything model, checkpoints, streaming engine and evaluation."""

@@ -1,0 +1,70 @@
+"""Shared fixtures: real episode folders written through the project's writer, and the official files."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from devices.episode_files import write_camera_matrices, write_quality
+from devices.episode_writer import EpisodeFrame, RawEpisodeWriter
+from devices.snapshot import VIEW_NAMES
+
+OFFICIAL_DIR = Path(__file__).resolve().parents[2] / "shared" / "reference" / "egotouch"
+
+
+@pytest.fixture(scope="session")
+def official_dir() -> Path:
+    if not OFFICIAL_DIR.is_dir():
+        pytest.skip("../shared/reference/egotouch is not beside the checkout")
+    return OFFICIAL_DIR
+
+
+def wilor_hands(frame: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Plausible WiLoR-range joints (x, y in [-5, 5], z around 50); the right hand vanishes every 7th frame."""
+    joints = rng.uniform(-3, 3, size=(2, 21, 3)).astype(np.float32)
+    joints[..., 2] = 50 + rng.uniform(-5, 5, size=(2, 21))
+    return joints, np.array([True, frame % 7 != 3])
+
+
+def glove_sample(frame: int, rng: np.random.Generator) -> np.ndarray:
+    """(2, 256) uint8: small noise with a press ramping up in the middle of the episode."""
+    raw = rng.integers(0, 6, size=(2, 256)).astype(np.int32)
+    press = int(200 * max(0.0, np.sin(frame / 6.0)))
+    raw[:, 0:60] += press
+    return np.clip(raw, 0, 255).astype(np.uint8)
+
+
+def frame_image(view: int, frame: int, size: tuple[int, int]) -> np.ndarray:
+    """A smooth test picture that differs per view and frame (compresses well, decodes close)."""
+    h, w = size
+    y, x = np.mgrid[0:h, 0:w]
+    image = np.empty((h, w, 3), np.uint8)
+    image[..., 0] = (x * 255 // max(w - 1, 1) + 7 * frame) % 256
+    image[..., 1] = (y * 255 // max(h - 1, 1) + 40 * view) % 256
+    image[..., 2] = (60 * view + 5 * frame) % 256
+    return image
+
+
+def write_episode(folder: Path, frames: int = 40, size: tuple[int, int] = (48, 64), seed: int = 0,
+                  views: tuple[str, ...] = VIEW_NAMES) -> Path:
+    """A complete raw episode folder written by RawEpisodeWriter."""
+    rng = np.random.default_rng(seed)
+    with RawEpisodeWriter(folder, crf=10) as writer:
+        for i in range(frames):
+            quat = np.tile(np.array([1.0, 0.0, 0.0, 0.0], np.float32), (2, 1))
+            writer.write(EpisodeFrame(
+                images={v: frame_image(k, i, size) for k, v in enumerate(views)},
+                wilor=wilor_hands(i, rng),
+                rokoko=(rng.normal(0, 0.1, size=(2, 21, 3)).astype(np.float32), np.array([True, True])),
+                glove=(glove_sample(i, rng), np.array([True, True]), quat),
+                trackers=(rng.normal(0, 1, size=(3, 7)).astype(np.float32), np.array([True, True, i % 5 != 0])),
+            ))
+    write_quality(folder / "quality_issues.json", {"left": 0.01, "right": 0.3})
+    write_camera_matrices(folder / "camera_matrix.txt", {"chest": np.array([[500, 0, 32], [0, 500, 24], [0, 0, 1.0]])})
+    return folder
+
+
+@pytest.fixture
+def episode_dir(tmp_path: Path) -> Path:
+    return write_episode(tmp_path / "raw" / "Home" / "pick_up_bottle" / "20260319_211038_740")

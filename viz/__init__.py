@@ -1,0 +1,1 @@
+"""Pure-numpy renderers and the dearpygui dashboard."""
