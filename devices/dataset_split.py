@@ -46,7 +46,12 @@ def write_split(path: Path, split: dict[str, list[Path]], absolute: bool = False
         resolved = Path(p).resolve()
         return str(resolved) if absolute else os.path.relpath(resolved, base)
 
-    path.write_text(json.dumps({key: [name(p) for p in split.get(key, [])] for key in SPLIT_KEYS}, indent=1) + "\n")
+    text = json.dumps({key: [name(p) for p in split.get(key, [])] for key in SPLIT_KEYS}, indent=1) + "\n"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    except OSError as exc:
+        raise UserError(f"{path}: cannot write the split file ({exc.strerror})") from None
 
 
 @dataclass(frozen=True)

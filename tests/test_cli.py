@@ -1,0 +1,80 @@
+"""The command line on real episode folders and HDF5 files."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.cli import main
+from devices.episode_loader import open_episode
+from tests.conftest import write_episode
+
+
+@pytest.fixture
+def raw_root(tmp_path):
+    for i, name in enumerate(("Home/a/1", "Home/b/2", "Office/c/3")):
+        write_episode(tmp_path / "raw" / name, frames=20, size=(16, 16), seed=i)
+    return tmp_path / "raw"
+
+
+def test_info_on_an_episode(episode_dir, capsys):
+    assert main(["info", str(episode_dir)]) == 0
+    out = capsys.readouterr().out
+    assert "Home/pick_up_bottle/20260319_211038_740" in out and "40 at 30 fps" in out
+    assert "ego 64×48 (40 frames)" in out and "wilor: left valid 100%" in out
+    assert "contact" in out and "problems  none" in out
+
+
+def test_convert_info_and_split_on_a_dataset(raw_root, tmp_path, capsys):
+    out_root = tmp_path / "h5"
+    assert main(["convert", str(raw_root), str(out_root), "--workers", "2", "--compression-level", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "converted 3, skipped 0, failed 0" in printed and "frames/s" in printed
+    assert main(["convert", str(raw_root), str(out_root), "--skip-existing"]) == 0
+    assert "converted 0, skipped 3" in capsys.readouterr().out
+    assert main(["split", str(out_root), "--min-frames", "10", "--unseen-ratio", "0.5"]) == 0
+    assert "test_unseen 1" in capsys.readouterr().out
+    assert main(["info", str(out_root)]) == 0
+    out = capsys.readouterr().out
+    assert "0 raw episode(s), 3 HDF5 file(s)" in out and "split     train" in out
+    assert main(["info", str(out_root / "Home" / "a" / "1.hdf5")]) == 0
+    assert "Home/a/1" in capsys.readouterr().out
+
+
+def test_convert_failure_exit_status(raw_root, tmp_path, capsys):
+    (raw_root / "Home" / "a" / "1" / "chest.mp4").unlink()
+    assert main(["convert", str(raw_root), str(tmp_path / "h5")]) == 1
+    captured = capsys.readouterr()
+    assert "failed 1" in captured.out
+
+
+def test_grids_command_with_the_official_layout_and_a_repaired_column(episode_dir, official_dir, capsys):
+    before = open_episode(episode_dir).pressure.grids
+    assert main(["grids", str(episode_dir), "--layout", str(official_dir), "--repair-column", "right:14"]) == 0
+    assert "baseline corrected left True" in capsys.readouterr().out
+    after = open_episode(episode_dir).pressure.grids
+    assert after.shape == before.shape and not np.array_equal(after, before, equal_nan=True)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["grids", "EP", "--repair-column", "middle:3"], "HAND:COLUMN"),
+    (["grids", "EP", "--min-scale", "0"], "--min-scale must be positive"),
+    (["convert", "RAW", "OUT", "--workers", "0"], "--workers must be at least 1"),
+    (["split", "NOWHERE"], "no .hdf5 trajectories"),
+    (["demo", "NOWHERE"], "not found"),
+])
+def test_bad_options_give_one_clear_line(episode_dir, tmp_path, capsys, argv, message):
+    argv = [str(episode_dir) if a == "EP" else str(tmp_path / a) if a in ("RAW", "OUT", "NOWHERE") else a for a in argv]
+    if "RAW" in " ".join(argv) or argv[0] == "convert":
+        write_episode(tmp_path / "RAW" / "S" / "t" / "1", frames=3, size=(16, 16))
+    try:
+        code = main(argv)
+    except SystemExit as exit:  # argparse rejects option syntax itself
+        code = exit.code
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and "Traceback" not in err
+
+
+def test_demo_replays_an_episode(episode_dir, capsys):
+    assert main(["demo", str(episode_dir)]) == 0
+    out = capsys.readouterr().out
+    assert "replay    40 frames, 120 camera images" in out and "real time" in out
