@@ -1,13 +1,13 @@
-"""`touchanything` command line: one sub-command per job; user errors print one line, exit status 2."""
+"""TouchAnything Live command line: one sub-command per job; user errors print one line, exit status 2."""
 from __future__ import annotations
 
 import argparse
 import sys
 
-from app import convert_command, demo_command, grids_command, info_command, split_command
+from app import convert_command, demo_command, grids_command, info_command, simulate_command, split_command
 from devices.errors import UserError
 
-COMMANDS = (demo_command, info_command, convert_command, split_command, grids_command)
+COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command)
 
 
 def build_parser() -> argparse.ArgumentParser:

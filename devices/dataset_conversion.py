@@ -1,6 +1,7 @@
 """Convert a whole raw EgoTouch root to HDF5 with worker processes, and write the two reports."""
 from __future__ import annotations
 
+import shutil
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -11,6 +12,7 @@ from devices.hdf5_convert import ConversionResult, convert_trajectory, output_pa
 
 CONVERSION_REPORT = "conversion_report.txt"
 QUALITY_REPORT = "quality_report.txt"
+SPLIT_FILE = "split.json"
 
 
 def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compression_level: int = 4,
@@ -45,7 +47,16 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
         on_result and on_result(result)
     results.sort(key=lambda r: str(r.source))
     write_reports(out_root, results)
+    copy_split(raw_root, out_root)
     return results
+
+
+def copy_split(raw_root: Path, out_root: Path) -> None:
+    """A `split.json` shipped with the raw data moves into the HDF5 root (as the official release does);
+    an existing one there is kept."""
+    source, target = raw_root / SPLIT_FILE, out_root / SPLIT_FILE
+    if source.is_file() and not target.exists():
+        shutil.copyfile(source, target)
 
 
 def _run(todo: list[tuple[Path, Path]], workers: int, level: int):

@@ -100,14 +100,17 @@ def build_split(hdf5_root: Path, config: SplitConfig = SplitConfig()) -> tuple[d
         if len(tasks) >= 2:
             rng.shuffle(tasks)
             unseen.update(tasks[: max(1, int(len(tasks) * config.unseen_ratio))])
-    rest = [f for f in kept if f"{f.parent.parent.name}/{f.parent.name}" not in unseen]
-    rng.shuffle(rest)
-    n_seen = max(1, int(len(rest) * 0.1))
-    n_val = max(1, int((len(rest) - n_seen) / 9))
-    split = {
-        "train": sorted(rest[n_seen + n_val:]),
-        "val": sorted(rest[n_seen:n_seen + n_val]),
-        "test_seen": sorted(rest[:n_seen]),
-        "test_unseen": sorted(f for f in kept if f"{f.parent.parent.name}/{f.parent.name}" in unseen),
-    }
+    split = partition_seen([f for f in kept if f"{f.parent.parent.name}/{f.parent.name}" not in unseen], rng)
+    split["test_unseen"] = sorted(f for f in kept if f"{f.parent.parent.name}/{f.parent.name}" in unseen)
     return split, excluded
+
+
+def partition_seen(items: list, rng: random.Random) -> dict[str, list]:
+    """The official seen partition: shuffle, then test_seen = first max(1, int(N · 0.1)), val = next
+    max(1, int((N − n_ts) / 9)), train = the rest (each list sorted)."""
+    items = list(items)
+    rng.shuffle(items)
+    n_seen = max(1, int(len(items) * 0.1))
+    n_val = max(1, int((len(items) - n_seen) / 9))
+    return {"train": sorted(items[n_seen + n_val:]), "val": sorted(items[n_seen:n_seen + n_val]),
+            "test_seen": sorted(items[:n_seen])}

@@ -56,6 +56,17 @@ def read_pressure_grids(path: Path) -> PressureFile:
     return PressureFile(np.stack([left, right], axis=1).astype(np.float32), attrs)
 
 
+def save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Compressed .npz like `np.savez_compressed`, but byte-identical for identical arrays (fixed zip
+    timestamps), so the same simulation seed gives the same files."""
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for key, value in arrays.items():
+            info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            with archive.open(info, "w", force_zip64=True) as handle:
+                np.lib.format.write_array(handle, np.asanyarray(value), allow_pickle=False)
+
+
 def write_pressure_grids(path: Path, grids: np.ndarray, baseline_applied: np.ndarray | None = None,
                          tactile_max: np.ndarray | None = None, bend_max: np.ndarray | None = None) -> None:
     """Write (T, 2, 21, 21) grids in the official npz layout; maxima given → separate_normalization."""
@@ -72,7 +83,7 @@ def write_pressure_grids(path: Path, grids: np.ndarray, baseline_applied: np.nda
     if baseline_applied is not None:
         for h, hand in enumerate(HANDS):
             out[f"baseline_corrected_{hand}"] = np.bool_(baseline_applied[h])
-    np.savez_compressed(path, **out)
+    save_npz(path, out)
 
 
 @dataclass
@@ -96,7 +107,7 @@ def read_masks(path: Path) -> Masks:
 
 
 def write_masks(path: Path, masks: Masks) -> None:
-    np.savez_compressed(path, masks=masks.masks, obj_ids=masks.obj_ids, valid_frames=masks.valid_frames)
+    save_npz(path, {"masks": masks.masks, "obj_ids": masks.obj_ids, "valid_frames": masks.valid_frames})
 
 
 def read_quality(path: Path) -> dict[str, float]:

@@ -1,0 +1,149 @@
+"""Generate a simulated EgoTouch dataset: N episodes over the five scene categories, a `split.json` with
+seen and unseen objects, and a dataset card (counts, contact statistics, contact visibility per camera).
+"""
+from __future__ import annotations
+
+import json
+import random
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from devices.dataset_split import SPLIT_KEYS, partition_seen
+from devices.errors import UserError
+from devices.sim.catalogue import SCENES, UNSEEN_OBJECTS
+from devices.sim.episode_generator import CAMERAS, EpisodeSpec, EpisodeStats, generate_episode
+
+UNSEEN_SHARE = 0.2
+CARD_JSON, CARD_MD, SPLIT_FILE = "dataset_card.json", "dataset_card.md", "split.json"
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    episodes: int
+    seconds: float = 10.0
+    seed: int = 0
+    workers: int = 1
+
+
+def check_config(config: SimulationConfig) -> None:
+    if config.episodes < 1:
+        raise UserError(f"--episodes must be at least 1, got {config.episodes}")
+    if not (np.isfinite(config.seconds) and config.seconds >= 1.0):
+        raise UserError(f"--seconds must be at least 1, got {config.seconds}")
+    if config.workers < 1:
+        raise UserError(f"--workers must be at least 1, got {config.workers}")
+
+
+def episode_specs(config: SimulationConfig) -> list[EpisodeSpec]:
+    """Scenes in turn; about one episode in five uses an unseen object; every episode has its own seed."""
+    scenes = list(SCENES)
+    seeds = np.random.SeedSequence(config.seed).spawn(config.episodes)
+    unseen = np.random.default_rng(config.seed).random(config.episodes) < UNSEEN_SHARE
+    return [EpisodeSpec(scenes[i % len(scenes)], config.seconds, int(seeds[i].generate_state(1)[0]), bool(unseen[i]),
+                        f"sim{config.seed:04d}_{i:05d}") for i in range(config.episodes)]
+
+
+def _generate(args: tuple[Path, EpisodeSpec]) -> EpisodeStats:
+    return generate_episode(*args)
+
+
+def simulate_dataset(out: Path, config: SimulationConfig,
+                     on_episode: Callable[[EpisodeStats], None] | None = None) -> dict:
+    """Write the episodes, `split.json` and the dataset card under `out`; returns the card."""
+    check_config(config)
+    started = time.perf_counter()
+    specs = episode_specs(config)
+    jobs = [(Path(out), spec) for spec in specs]
+    results: list[EpisodeStats] = []
+    if config.workers == 1:
+        for job in jobs:
+            results.append(_generate(job))
+            on_episode and on_episode(results[-1])
+    else:
+        with ProcessPoolExecutor(max_workers=config.workers) as pool:
+            for stats in pool.map(_generate, jobs):
+                results.append(stats)
+                on_episode and on_episode(stats)
+    seconds = time.perf_counter() - started
+    write_split(Path(out), results, config.seed)
+    card = dataset_card(results, config, seconds)
+    (Path(out) / CARD_JSON).write_text(json.dumps(card, indent=1) + "\n")
+    (Path(out) / CARD_MD).write_text(card_markdown(card))
+    return card
+
+
+def _hdf5_name(stats: EpisodeStats, out: Path) -> str:
+    return (stats.folder.relative_to(out).parent / f"{stats.folder.name}.hdf5").as_posix()
+
+
+def write_split(out: Path, results: list[EpisodeStats], seed: int) -> dict[str, list[str]]:
+    """`split.json` naming the HDF5 files `touchanything convert` will write (relative paths; the converter
+    copies this file into the HDF5 root): unseen-object episodes → test_unseen, the rest split officially."""
+    seen = [_hdf5_name(s, out) for s in results if not any(o in UNSEEN_OBJECTS for o in s.objects)]
+    split = partition_seen(seen, random.Random(seed))
+    split["test_unseen"] = sorted(_hdf5_name(s, out) for s in results if any(o in UNSEEN_OBJECTS for o in s.objects))
+    (out / SPLIT_FILE).write_text(json.dumps({k: split[k] for k in SPLIT_KEYS}, indent=1) + "\n")
+    return split
+
+
+def _merge(results: list[EpisodeStats], attr: str) -> dict[str, list[int]]:
+    total: dict[str, list[int]] = {}
+    for stats in results:
+        for key, (hit, count) in getattr(stats, attr).items():
+            entry = total.setdefault(key, [0, 0])
+            entry[0] += hit
+            entry[1] += count
+    return total
+
+
+def dataset_card(results: list[EpisodeStats], config: SimulationConfig, seconds: float) -> dict:
+    frames = sum(s.frames for s in results)
+    visible = _merge(results, "visible")
+    per_camera = {}
+    for camera in CAMERAS:
+        hit = sum(v[0] for k, v in visible.items() if k.startswith(camera + "/"))
+        count = sum(v[1] for k, v in visible.items() if k.startswith(camera + "/"))
+        per_camera[camera] = {"visible": hit, "contact_points": count, "share": hit / count if count else None}
+    for camera in ("left", "right"):
+        own = visible.get(f"{camera}/{camera}", [0, 0])
+        per_camera[camera]["own_hand_share"] = own[0] / own[1] if own[1] else None
+    contact = {key: {"frames": n, "contact_share": hit / n if n else None} for key, (hit, n) in sorted(_merge(results, "contact").items())}
+    return {
+        "command": f"touchanything simulate OUT --episodes {config.episodes} --seconds {config.seconds:g} --seed {config.seed}",
+        "episodes": len(results), "frames": frames, "seconds_per_episode": config.seconds,
+        "generation_seconds": round(seconds, 1), "generation_fps": round(frames / seconds, 1) if seconds else None,
+        "scenes": {scene: sum(s.scene == scene for s in results) for scene in SCENES},
+        "unseen_objects": sorted(UNSEEN_OBJECTS),
+        "episodes_with_unseen_objects": sum(any(o in UNSEEN_OBJECTS for o in s.objects) for s in results),
+        "dead_column_episodes": sum(s.dead_column is not None for s in results),
+        "contact_by_hand_and_task": contact,
+        "contact_visibility": per_camera,
+        "episodes_list": [{"path": s.folder.as_posix(), "task": s.task, "objects": s.objects,
+                           "dead_right_column": s.dead_column} for s in results],
+    }
+
+
+def _share(value: float | None) -> str:
+    return "n/a" if value is None else f"{100 * value:.1f}%"
+
+
+def card_markdown(card: dict) -> str:
+    lines = ["# Simulated EgoTouch dataset", "", f"Generated with `{card['command']}`: {card['episodes']} episodes, "
+             f"{card['frames']} frames, {card['generation_fps']} frames/s.", "",
+             "Scenes: " + ", ".join(f"{k} {v}" for k, v in card["scenes"].items()) + ".",
+             f"Episodes with unseen objects ({', '.join(card['unseen_objects'])}): {card['episodes_with_unseen_objects']}; "
+             f"with a dead right-glove column (repaired in the ground truth): {card['dead_column_episodes']}.", "",
+             "## Contact share (a tactile cell above 0.1) per hand and task", "", "| hand/task | frames | contact |", "|---|---|---|"]
+    lines += [f"| {k} | {v['frames']} | {_share(v['contact_share'])} |" for k, v in card["contact_by_hand_and_task"].items()]
+    lines += ["", "## Contact visibility per camera", "",
+              "Of the tactile points in contact, the share each camera sees (inside the image, line of sight not "
+              "blocked by a hand, the table or another object).", "",
+              "| camera | contact points | visible | own hand only |", "|---|---|---|---|"]
+    for camera, v in card["contact_visibility"].items():
+        lines.append(f"| {camera} | {v['contact_points']} | {_share(v['share'])} | {_share(v.get('own_hand_share'))} |")
+    return "\n".join(lines) + "\n"
