@@ -78,3 +78,12 @@ def test_demo_replays_an_episode(episode_dir, capsys):
     assert main(["demo", str(episode_dir)]) == 0
     out = capsys.readouterr().out
     assert "replay    40 frames, 120 camera images" in out and "real time" in out
+
+
+def test_demo_replays_the_bundled_sample(capsys):
+    from app.demo_command import sample_episodes
+
+    assert len(sample_episodes()) == 3
+    assert main(["demo"]) == 0
+    out = capsys.readouterr().out
+    assert "replay    300 frames, 900 camera images" in out and "problems  none" in out
