@@ -68,3 +68,30 @@ def write_episode(folder: Path, frames: int = 40, size: tuple[int, int] = (48, 6
 @pytest.fixture
 def episode_dir(tmp_path: Path) -> Path:
     return write_episode(tmp_path / "raw" / "Home" / "pick_up_bottle" / "20260319_211038_740")
+
+
+@pytest.fixture(scope="session")
+def sim_hdf5_root(tmp_path_factory) -> Path:
+    """Three short simulated episodes converted to HDF5, with their split.json (seed 5)."""
+    from devices.dataset_conversion import convert_dataset
+    from devices.sim.dataset_generator import SimulationConfig, simulate_dataset
+
+    raw = tmp_path_factory.mktemp("sim_raw")
+    simulate_dataset(raw, SimulationConfig(episodes=3, seconds=2.0, seed=5, workers=1))
+    out = tmp_path_factory.mktemp("sim_h5")
+    convert_dataset(raw, out, compression_level=1)
+    return out
+
+
+@pytest.fixture(scope="session")
+def tiny_checkpoint(tmp_path_factory) -> Path:
+    """A randomly initialised `tiny` model saved in the official checkpoint format."""
+    import torch
+
+    from inference.checkpoint import build_model, save_checkpoint
+    from inference.model_config import PRESETS
+
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("ckpt") / "best_model.pth"
+    save_checkpoint(path, build_model(PRESETS["tiny"]))
+    return path

@@ -1,0 +1,50 @@
+"""TouchAnything: the official module tree and state_dict names, and its forward pass.
+
+`model(frames=None, poses=None, views=None) -> {"tactile": (B, T, 2, 21, 21)}`. `views` is a dict with any
+subset of ego, wrist_left, wrist_right, each (B, T, 3, H, W); `poses` (B, T, 42, 3) prepared with
+`prepare_poses`. The official `frames=` path (ego only, no view embedding, no output norm) is kept.
+The backbone is shared, so it appears in the state_dict under both `vision_encoder.encoder.*` and
+`multi_view_encoder.vision_encoder.encoder.*`.
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from inference.fusion import CrossAttentionFusion
+from inference.model_config import ModelConfig
+from inference.multi_view import MultiViewEncoder
+from inference.pose_encoder import TransformerPoseEncoder
+from inference.tactile_decoder import JointLevelTactileDecoder
+from inference.temporal import TemporalTransformer
+from inference.vision_encoder import VisionEncoder
+from inference.vit import BACKBONES, DinoVisionTransformer
+
+
+class TouchAnything(nn.Module):
+    def __init__(self, config: ModelConfig) -> None:
+        super().__init__()
+        c = config.check()
+        self.config = c
+        width = c.embed_dim
+        self.vision_encoder = VisionEncoder(DinoVisionTransformer(BACKBONES[c.backbone]), c.freeze_backbone)
+        self.multi_view_encoder = MultiViewEncoder(self.vision_encoder, width, c.cross_view_heads, c.cross_view_layers,
+                                                   c.mlp_ratio, c.dropout, c.view_dropout)
+        self.temporal_transformer = TemporalTransformer(width, c.temporal_layers, c.temporal_heads, c.mlp_ratio,
+                                                        c.dropout, c.window_size)
+        self.pose_encoder = TransformerPoseEncoder(width, c.pose_layers, c.pose_heads, c.mlp_ratio, c.dropout, c.num_joints)
+        self.fusion = CrossAttentionFusion(width, c.fusion_layers, c.fusion_heads, c.mlp_ratio, c.dropout)
+        self.decoder = JointLevelTactileDecoder(width, c.decoder_channels, c.decoder_dropout, c.tactile_size)
+
+    def forward(self, frames: torch.Tensor | None = None, poses: torch.Tensor | None = None,
+                views: dict[str, torch.Tensor] | None = None) -> dict[str, torch.Tensor]:
+        if poses is None:
+            raise ValueError("poses (B, T, 42, 3) are required for tactile prediction")
+        if views is not None:
+            visual = self.multi_view_encoder(views)
+        elif frames is not None:
+            visual = self.vision_encoder(frames)
+        else:
+            raise ValueError("give views={...} or frames=")
+        fused = self.fusion(self.temporal_transformer(visual), self.pose_encoder(poses))
+        return {"tactile": self.decoder(fused)}
