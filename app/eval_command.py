@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
 from devices.dataset_split import SPLIT_KEYS, read_split
@@ -13,6 +14,7 @@ from devices.errors import UserError
 from inference.checkpoint import load_model
 from inference.evaluation import VIEW_SETS, EvaluationResult, evaluate
 from inference.metrics import METRICS
+from viz.comparison_video import comparison_frame, write_comparison_video
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -29,6 +31,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--ego-path", choices=("frames", "views"), default="frames",
                         help="ego-only through the official frames= path (default) or the multi-view encoder")
     parser.add_argument("--out", type=Path, help="folder for results.json and results.md")
+    parser.add_argument("--video", action="store_true", help="also write a comparison video per trajectory into OUT")
     parser.set_defaults(run=run)
 
 
@@ -48,6 +51,15 @@ def markdown(results: list[EvaluationResult], split: str) -> str:
     return "\n".join(lines)
 
 
+def trajectory_frames(episode, prediction, gt):
+    """Comparison frames of one evaluated trajectory (stitched prediction against ground truth)."""
+    for i in range(episode.num_frames):
+        images = {v: s.read(i) for v, s in episode.views.items()}
+        footer = f"Frame {i:04d}/{episode.num_frames}  t={episode.timestamps_us[i] / 1e6:.2f}s  [{episode.task}/{episode.trajectory_id}]"
+        shown = np.where(np.isnan(gt[i]), np.nan, prediction[i])  # the ground truth's layout mask, as officially
+        yield comparison_frame({v: im for v, im in images.items() if im is not None}, gt[i], shown, footer)
+
+
 def split_files(data: Path, split: str, split_file: Path | None, num_traj: int | None) -> list[Path]:
     files = read_split(split_file or data / "split.json")[split]
     if num_traj is not None:
@@ -65,16 +77,28 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
 def run(args: argparse.Namespace) -> int:
     if args.batch_size < 1:
         raise UserError(f"--batch-size must be at least 1, got {args.batch_size}")
+    if args.video and not args.out:
+        raise UserError("--video needs --out (the folder the videos go to)")
     files = split_files(args.data, args.split, args.split_file, args.num_traj)
     model = load_model(args.checkpoint, args.config)
+    if args.out:
+        try:
+            args.out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UserError(f"{args.out}: cannot create the output folder ({exc.strerror})") from None
     results = []
     for views in args.views:
         with tqdm(total=len(files), unit="traj", desc=f"eval {views}") as bar:
-            results.append(evaluate(model, files, views, args.batch_size, args.ego_path, on_trajectory=lambda _: bar.update(1)))
+            def done(row, episode, prediction, gt, views=views) -> None:
+                if args.video:
+                    video = args.out / f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}.mp4"
+                    write_comparison_video(video, trajectory_frames(episode, prediction.stitched, gt))
+                bar.update(1)
+
+            results.append(evaluate(model, files, views, args.batch_size, args.ego_path, on_trajectory=done))
     table = markdown(results, args.split)
     print(table)
     if args.out:
-        args.out.mkdir(parents=True, exist_ok=True)
         payload = {"split": args.split, "checkpoint": str(args.checkpoint), "ego_path": args.ego_path,
                    "results": [{"views": r.views, "stitched": r.summary("stitched"), "causal": r.summary("causal"),
                                 "trajectories": r.rows} for r in results]}

@@ -109,8 +109,11 @@ class EvaluationResult:
 
 
 def evaluate(model: TouchAnything, files: list[Path], views: str, batch_size: int = 16, ego_path: str = "frames",
-             on_trajectory: Callable[[dict], None] | None = None) -> EvaluationResult:
-    """The official protocol over HDF5 (or raw) trajectories for one view configuration."""
+             on_trajectory: Callable[[dict, Episode, TrajectoryPrediction, np.ndarray], None] | None = None
+             ) -> EvaluationResult:
+    """The official protocol over HDF5 (or raw) trajectories for one view configuration.
+
+    `on_trajectory(row, episode, prediction, gt)` is called while each episode is still open."""
     if views not in VIEW_SETS:
         raise UserError(f"unknown --views {views!r}; choose from {', '.join(VIEW_SETS)}")
     bend = TactileLayout.default().bend
@@ -124,6 +127,6 @@ def evaluate(model: TouchAnything, files: list[Path], views: str, batch_size: in
             row = {"path": str(path), "scene": episode.scene, "task": episode.task, "frames": episode.num_frames,
                    "stitched": trajectory_metrics(prediction.stitched, gt, bend),
                    "causal": trajectory_metrics(prediction.causal, gt, bend)}
+            on_trajectory and on_trajectory(row, episode, prediction, gt)
         rows.append(row)
-        on_trajectory and on_trajectory(row)
     return EvaluationResult(views, rows)

@@ -10,6 +10,7 @@ import pytest
 from app.cli import main
 from devices.dataset_split import read_split
 from devices.episode_loader import open_episode
+from devices.video_io import VideoReader
 from inference.checkpoint import load_model
 from inference.evaluation import SPAN, predict_trajectory
 from inference.metrics import METRICS
@@ -24,7 +25,7 @@ def test_eval_writes_the_table_per_view_and_scene(sim_hdf5_root, tiny_checkpoint
     split = read_split(sim_hdf5_root / "split.json")
     name = nonempty_split(sim_hdf5_root)
     argv = ["eval", "--checkpoint", str(tiny_checkpoint), "--data", str(sim_hdf5_root), "--split", name,
-            "--views", "ego", "all", "--batch-size", "32", "--out", str(tmp_path / "out")]
+            "--views", "ego", "all", "--batch-size", "32", "--out", str(tmp_path / "out"), "--video"]
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "| views | scene |" in printed and "causal newest-frame" in printed
@@ -38,6 +39,11 @@ def test_eval_writes_the_table_per_view_and_scene(sim_hdf5_root, tiny_checkpoint
                     value = row[mode][key]
                     assert math.isnan(value) or 0.0 <= value <= 1.0
     assert (tmp_path / "out" / "results.md").read_text().startswith("# Evaluation on")
+    videos = sorted((tmp_path / "out").glob("*.mp4"))
+    assert len(videos) == 2 * len(split[name])
+    with VideoReader(videos[0]) as reader:
+        assert (reader.width, reader.height, reader.num_frames) == (1440, 630, 60)
+        assert reader.read(30).std() > 10
 
 
 def test_stitching_covers_every_frame_and_causal_starts_at_frame_14(sim_hdf5_root, tiny_checkpoint):

@@ -1,0 +1,45 @@
+"""Comparison frames (cameras on top; ground truth, prediction and error below) and the video writer."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from devices.video_io import VideoWriter
+from viz.pressure_panel import BACKGROUND, pressure_panel, put_text
+
+WIDTH, CAMERA_HEIGHT, PANEL_HEIGHT = 1440, 270, 360
+VIEW_LABELS = {"ego": "Head", "wrist_left": "Left Wrist", "wrist_right": "Right Wrist"}
+
+
+def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred: np.ndarray | None, footer: str) -> np.ndarray:
+    """(630, 1440, 3) uint8: the three views (480×270 each), then GT | prediction | error panels.
+
+    Absent views, ground truth or prediction leave labelled placeholders."""
+    frame = np.empty((CAMERA_HEIGHT + PANEL_HEIGHT, WIDTH, 3), np.uint8)
+    frame[:] = BACKGROUND
+    for k, (view, label) in enumerate(VIEW_LABELS.items()):
+        x = k * 480
+        image = images.get(view)
+        if image is not None:
+            frame[:CAMERA_HEIGHT, x:x + 480] = cv2.resize(image, (480, CAMERA_HEIGHT), interpolation=cv2.INTER_AREA)
+        put_text(frame, label if image is not None else f"{label}: no image", (x + 8, 22), 0.6)
+    panels = [(gt, "Ground Truth Pressure", False), (pred, "Predicted Pressure", False),
+              (None if gt is None or pred is None else pred - gt, "Prediction - Ground Truth", True)]
+    for k, (grids, title, error) in enumerate(panels):
+        x = k * 480
+        if grids is None:
+            put_text(frame, f"{title}: n/a", (x + 10, CAMERA_HEIGHT + 30), 0.6)
+            continue
+        frame[CAMERA_HEIGHT:, x:x + 480] = pressure_panel(grids, title, 480, PANEL_HEIGHT, error=error)
+    put_text(frame, footer, (10, frame.shape[0] - 10), 0.5)
+    return frame
+
+
+def write_comparison_video(path: Path, frames) -> int:
+    """Write an iterable of comparison frames as H.264 at 30 fps; returns the frame count."""
+    with VideoWriter(Path(path), crf=23) as writer:
+        for frame in frames:
+            writer.write(frame)
+        return writer.frames_written
