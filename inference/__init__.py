@@ -1,1 +1,7 @@
-"""TouchAnything model, checkpoints, streaming engine and evaluation."""
+"""TouchAnything model, checkpoints, streaming engine and evaluation.
+
+Public entry point: `inference.load_model(checkpoint_path, config_path=None)` → the model in eval mode.
+"""
+from inference.checkpoint import load_model
+
+__all__ = ["load_model"]
