@@ -5,10 +5,11 @@ import argparse
 import sys
 
 from app import (convert_command, demo_command, eval_command, grids_command, info_command, simulate_command,
-                 split_command)
+                 split_command, train_command)
 from devices.errors import UserError
 
-COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command, eval_command)
+COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command, train_command,
+            eval_command)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -2,9 +2,11 @@
 beside them) and the public loader `load_model`."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import torch
+import yaml
 
 from devices.errors import UserError
 from inference.model_config import ModelConfig, config_from_dict, read_config_file, write_config
@@ -93,17 +95,25 @@ def build_model(config: ModelConfig, pretrained: bool = True) -> TouchAnything:
 
 
 def save_checkpoint(path: Path, model: TouchAnything, *, epoch: int = 0, optimizer=None, scheduler=None,
-                    loss: float | None = None, metrics: dict | None = None, half: bool = False) -> None:
-    """Official dict format plus `config.yaml` beside; `half` stores floating tensors as fp16."""
+                    loss: float | None = None, metrics: dict | None = None, half: bool = False,
+                    config: dict | None = None) -> None:
+    """Official dict format plus `config.yaml` beside (`config`, or the model's own section); `half`
+    stores floating tensors as fp16. Written to a temporary name and renamed, so a crash never leaves a
+    truncated checkpoint."""
     state = model.state_dict()
     if half:
         state = {k: v.half() if v.is_floating_point() else v for k, v in state.items()}
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(path.name + ".partial")
     torch.save({
         "epoch": epoch, "model_state_dict": state,
         "optimizer_state_dict": optimizer.state_dict() if optimizer is not None else {},
         "scheduler_state_dict": scheduler.state_dict() if scheduler is not None else {},
         "loss": loss, "metrics": metrics or {},
-    }, path)
-    write_config(path.parent / CONFIG_FILE, model.config)
+    }, partial)
+    os.replace(partial, path)
+    if config is None:
+        write_config(path.parent / CONFIG_FILE, model.config)
+    else:
+        (path.parent / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))

@@ -33,14 +33,15 @@ class MultiViewEncoder(nn.Module):
         self.view_gate = nn.Sequential(nn.Linear(width, width // 4), nn.GELU(), nn.Linear(width // 4, 1))
         self.output_norm = nn.LayerNorm(width)
         self.view_dropout = view_dropout
+        self.last_kept: tuple[str, ...] = ()
 
     def kept_views(self, views: dict[str, torch.Tensor]) -> list[str]:
-        """Present views in the official order, after view dropout when training."""
+        """Present views in the official order, after view dropout when training (kept in `last_kept`)."""
         order = [v for v in VIEW_NAMES if v in views]
-        if not self.training:
-            return order
-        kept = [v for v in order if v == "ego" or torch.rand(1).item() > self.view_dropout]
-        return kept or order[:1]
+        if self.training:
+            order = [v for v in order if v == "ego" or torch.rand(1).item() > self.view_dropout] or order[:1]
+        self.last_kept = tuple(order)
+        return order
 
     def encode_view(self, name: str, frames: torch.Tensor) -> torch.Tensor:
         """(B, T, 3, H, W) → (B, T, N, D) backbone tokens plus the view embedding."""
@@ -60,3 +61,7 @@ class MultiViewEncoder(nn.Module):
 
     def forward(self, views: dict[str, torch.Tensor]) -> torch.Tensor:
         return self.fuse({v: self.encode_view(v, views[v]) for v in self.kept_views(views)})
+
+    def forward_tokens(self, tokens: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The same as `forward` from backbone tokens {view: (B, T, N, D)} computed beforehand."""
+        return self.fuse({v: tokens[v] + self.view_embeddings[v] for v in self.kept_views(tokens)})

@@ -37,14 +37,22 @@ class TouchAnything(nn.Module):
         self.decoder = JointLevelTactileDecoder(width, c.decoder_channels, c.decoder_dropout, c.tactile_size)
 
     def forward(self, frames: torch.Tensor | None = None, poses: torch.Tensor | None = None,
-                views: dict[str, torch.Tensor] | None = None) -> dict[str, torch.Tensor]:
+                views: dict[str, torch.Tensor] | None = None,
+                tokens: dict[str, torch.Tensor] | None = None) -> dict[str, torch.Tensor]:
+        """`tokens` (not in the official signature): backbone tokens {view: (B, T, N, D)} computed
+        beforehand (a frozen backbone's cache), used instead of `views`."""
         if poses is None:
             raise ValueError("poses (B, T, 42, 3) are required for tactile prediction")
         if views is not None:
             visual = self.multi_view_encoder(views)
+        elif tokens is not None:
+            visual = self.multi_view_encoder.forward_tokens(tokens)
         elif frames is not None:
             visual = self.vision_encoder(frames)
         else:
-            raise ValueError("give views={...} or frames=")
-        fused = self.fusion(self.temporal_transformer(visual), self.pose_encoder(poses))
-        return {"tactile": self.decoder(fused)}
+            raise ValueError("give views={...}, tokens={...} or frames=")
+        return {"tactile": self.head(visual, poses)}
+
+    def head(self, visual: torch.Tensor, poses: torch.Tensor) -> torch.Tensor:
+        """Fused visual tokens (B, T, N, D) and prepared poses (B, T, 42, 3) → (B, T, 2, 21, 21)."""
+        return self.decoder(self.fusion(self.temporal_transformer(visual), self.pose_encoder(poses)))

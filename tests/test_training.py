@@ -1,0 +1,174 @@
+"""Training: end to end with resume, learning, view dropout, the NaN guard, the feature cache, DDP."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import torch
+import yaml
+
+from app.cli import main
+from devices.errors import UserError
+from inference.checkpoint import load_model, read_checkpoint
+from inference.clip_dataset import clip_starts, prepare_target
+from inference.model_config import PRESETS
+from inference.touch_model import TouchAnything
+from inference.train_config import TrainConfig, train_config_from_file
+from inference.trainer import Trainer, TrainingError
+
+TINY = replace(PRESETS["tiny"], freeze_backbone=False)
+
+
+def config(**kw) -> TrainConfig:
+    base = dict(model=TINY, epochs=2, batch_size=4, learning_rate=1e-3, warmup_epochs=1, save_every=1, seed=3)
+    return TrainConfig(**{**base, **kw})
+
+
+@pytest.fixture
+def data(sim_hdf5_root, tmp_path) -> Path:
+    """A copy of the simulated HDF5 root whose split trains and validates on every trajectory."""
+    root = tmp_path / "h5"
+    shutil.copytree(sim_hdf5_root, root)
+    files = sorted(str(p.relative_to(root)) for p in root.rglob("*.hdf5"))
+    (root / "split.json").write_text(json.dumps({"train": files, "val": files[:1], "test_seen": [], "test_unseen": []}))
+    return root
+
+
+def test_official_clip_sampler_and_target_preparation():
+    assert clip_starts(14, 15) == [] and clip_starts(15, 15) == [0] and clip_starts(44, 15) == [0, 15]
+    pressure = np.full((2, 2, 21, 21), np.nan, np.float32)
+    pressure[:, :, 5, 5] = [[4.0, 2.0], [1.0, 0.5]]
+    target, mask = prepare_target(pressure, normalized=False)
+    assert mask.sum() == 4 and np.isfinite(target).all() and target.max() == 1.0 and target[0, 1, 5, 5] == 0.5
+    assert prepare_target(pressure, normalized=True)[0][1, 1, 5, 5] == 0.5
+
+
+def test_train_checkpoint_resume_and_eval(data, tmp_path, capsys):
+    straight = Trainer(config(epochs=3), data, tmp_path / "straight", log=lambda _: None)
+    straight.fit()
+    lrs = [straight.optimizer.param_groups[0]["lr"]]
+    def interrupt_after_epoch_2(message: str) -> None:
+        if message.startswith("epoch 2:"):
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        Trainer(config(epochs=3), data, tmp_path / "run", log=interrupt_after_epoch_2).fit()
+    for name in ("last.pth", "best_model.pth", "checkpoint_epoch_1.pth", "checkpoint_epoch_2.pth", "config.yaml"):
+        assert (tmp_path / "run" / name).is_file(), name
+    checkpoint = read_checkpoint(tmp_path / "run" / "last.pth")
+    assert not (tmp_path / "run" / "checkpoint_epoch_3.pth").exists()
+    assert checkpoint["epoch"] == 2 and set(checkpoint) >= {"model_state_dict", "optimizer_state_dict", "scheduler_state_dict", "loss", "metrics"}
+    resumed = Trainer(config(epochs=3), data, tmp_path / "run", log=lambda _: None)
+    resumed.resume(tmp_path / "run" / "last.pth")
+    assert resumed.start_epoch == 2
+    resumed.fit()
+    assert resumed.optimizer.param_groups[0]["lr"] == pytest.approx(lrs[0])
+    assert len(resumed.result.train_loss) == 1
+    written = train_config_from_file(tmp_path / "run" / "config.yaml")
+    assert written.model == TINY and written.epochs == 3 and written.learning_rate == 1e-3
+    model = load_model(tmp_path / "run" / "best_model.pth")
+    assert isinstance(model, TouchAnything) and not model.training
+    assert main(["eval", "--checkpoint", str(tmp_path / "run" / "best_model.pth"), "--data", str(data),
+                 "--split", "train", "--views", "ego+left", "--num-traj", "1"]) == 0
+    assert "| ego+left | overall |" in capsys.readouterr().out
+
+
+def test_loss_decreases_on_a_fixed_tiny_set(data, tmp_path):
+    trainer = Trainer(config(epochs=12, warmup_epochs=0, learning_rate=2e-3), data, tmp_path / "fit", log=lambda _: None)
+    result = trainer.fit()
+    assert result.train_loss[-1] < 0.7 * result.train_loss[0]
+
+
+def test_view_dropout_proportions_over_many_steps():
+    torch.manual_seed(0)
+    encoder = TouchAnything(PRESETS["tiny"]).multi_view_encoder.train()
+    counts = {"all": 0, "one wrist": 0, "ego only": 0}
+    steps = 3000
+    for _ in range(steps):
+        kept = encoder.kept_views(dict.fromkeys(("ego", "wrist_left", "wrist_right")))
+        counts["all" if len(kept) == 3 else "one wrist" if len(kept) == 2 else "ego only"] += 1
+    expected = {"all": 0.7 ** 2, "one wrist": 2 * 0.7 * 0.3, "ego only": 0.3 ** 2}
+    for key, share in expected.items():
+        assert abs(counts[key] / steps - share) < 0.03, (key, counts)
+
+
+def test_trainer_records_the_view_sets_it_trained_on(data, tmp_path):
+    result = Trainer(config(epochs=2), data, tmp_path / "views", log=lambda _: None).fit()
+    assert sum(result.view_sets.values()) > 0 and all(k.startswith("ego") for k in result.view_sets)
+
+
+def test_nan_guard_names_the_step_and_episode(data, tmp_path):
+    trainer = Trainer(config(), data, tmp_path / "nan", log=lambda _: None)
+    with torch.no_grad():
+        trainer.model.decoder.head[0].bias.fill_(float("nan"))  # the injected NaN
+    with pytest.raises(TrainingError) as err:
+        trainer.fit()
+    message = str(err.value)
+    assert "non-finite loss" in message and "epoch 1, step 1" in message and ".hdf5" in message
+    exploding = Trainer(config(learning_rate=1e30, warmup_epochs=0, grad_clip=1e30), data, tmp_path / "boom", log=lambda _: None)
+    with pytest.raises(TrainingError, match="non-finite"):
+        exploding.fit()
+
+
+def test_frozen_backbone_features_are_cached_after_the_first_epoch(data, tmp_path):
+    trainer = Trainer(config(model=replace(TINY, freeze_backbone=True)), data, tmp_path / "frozen", log=lambda _: None)
+    trainer.fit()
+    frames = sum(len(clip_starts(len(e.poses), 15)) * 8 for e in trainer.train_set.episodes)
+    views = len(trainer.train_set.episodes[0].images)
+    assert trainer.cache.hits > 0 and len(trainer.cache) >= frames * views
+
+
+def test_empty_mask_clips_are_skipped_and_zero_pressure_trains(data, tmp_path):
+    files = sorted(data.rglob("*.hdf5"))
+    with h5py.File(files[0], "a") as f:
+        for key in ("pressure/left_pressure_grid", "pressure/right_pressure_grid"):
+            f[key][...] = np.nan
+    with h5py.File(files[1], "a") as f:
+        for key in ("pressure/left_pressure_grid", "pressure/right_pressure_grid"):
+            grid = f[key][()]
+            f[key][...] = np.where(np.isnan(grid), np.nan, 0.0)
+    result = Trainer(config(batch_size=1, epochs=1), data, tmp_path / "empty", log=lambda _: None).fit()
+    assert result.skipped_batches > 0 and np.isfinite(result.train_loss[0])
+
+
+def test_bad_training_settings(tmp_path):
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump({"training": {"epochs": 0}}))
+    with pytest.raises(UserError, match="epochs must be positive"):
+        train_config_from_file(tmp_path / "c.yaml")
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump({"training": {"epochs": 2, "warmup_epochs": 5}}))
+    with pytest.raises(UserError, match="warmup_epochs"):
+        train_config_from_file(tmp_path / "c.yaml")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_ddp_with_two_cpu_processes(data, tmp_path):
+    cfg = tmp_path / "ddp.yaml"
+    cfg.write_text(yaml.safe_dump({"model": {"vision": {"backbone": "vit_t14", "image_size": 112, "freeze": False},
+                                             "temporal": {"num_layers": 1, "num_heads": 4},
+                                             "multi_view": {"num_cross_layers": 1, "num_heads": 4},
+                                             "pose_encoder": {"num_layers": 1, "num_heads": 4},
+                                             "fusion": {"num_layers": 1, "num_heads": 4},
+                                             "tactile_decoder": {"conv_channels": 64}},
+                                   "training": {"epochs": 1, "batch_size": 2, "warmup_epochs": 0}}))
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MASTER_ADDR": "127.0.0.1"}
+    command = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_addr", "127.0.0.1",
+               "--master_port", str(_free_port()), "-m", "app.cli", "train", "--config", str(cfg), "--data", str(data),
+               "--out", str(tmp_path / "ddp")]
+    proc = subprocess.run(command, capture_output=True, text=True, env=env, timeout=600, cwd=Path(__file__).parents[1])
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert (tmp_path / "ddp" / "last.pth").is_file() and "best validation loss" in proc.stdout
+    load_model(tmp_path / "ddp" / "last.pth")
