@@ -75,9 +75,13 @@ PRESETS = {
     "tiny": ModelConfig(backbone="vit_t14", image_size=112, temporal_layers=2, temporal_heads=4,
                         cross_view_layers=1, cross_view_heads=4, pose_layers=1, pose_heads=4,
                         fusion_layers=1, fusion_heads=4, decoder_channels=64),
+    "nano": ModelConfig(backbone="vit_n14", image_size=112, temporal_layers=1, temporal_heads=4,
+                        cross_view_layers=1, cross_view_heads=4, pose_layers=1, pose_heads=4,
+                        fusion_layers=1, fusion_heads=4, decoder_channels=32),
 }
-"""`paper` is exactly the official architecture; `small` (ViT-S/14 at 168 px) and `tiny` (width 192 at
-112 px) are narrower and shallower for CPU real time."""
+"""`paper` is exactly the official architecture; `small` (ViT-S/14 at 168 px, for users with the DINOv2
+S/14 weights), `tiny` (width 192, 6 blocks at 112 px) and `nano` (width 128, 4 blocks at 112 px) are
+narrower and shallower for CPU real time; tiny and nano train from scratch on a CPU."""
 
 
 def preset(name: str) -> ModelConfig:

@@ -98,6 +98,7 @@ class Trainer:
         params = [p for p in self.model.parameters() if p.requires_grad]
         self.optimizer = torch.optim.AdamW(params, lr=config.learning_rate, weight_decay=config.weight_decay)
         self.scheduler = _schedule(self.optimizer, config)
+        self.scaler = torch.amp.GradScaler("cuda", enabled=config.mixed_precision and self.device.type == "cuda")
         self.cache = FeatureCache() if c.freeze_backbone else None
         self.result = TrainResult()
         self.start_epoch = 0
@@ -164,9 +165,11 @@ class Trainer:
             loss = tactile_loss(pred, batch["target"].to(self.device), mask)
             self._check_loss(loss, epoch, step, batch)
             self.optimizer.zero_grad(set_to_none=True)
-            loss.backward()
+            self.scaler.scale(loss).backward()
+            self.scaler.unscale_(self.optimizer)
             torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
-            self.optimizer.step()
+            self.scaler.step(self.optimizer)
+            self.scaler.update()
             self._check_weights(epoch, step, batch)
             losses.append(loss.item())
             clips += len(batch["poses"])

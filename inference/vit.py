@@ -35,8 +35,10 @@ BACKBONES = {
     "dinov2_vitb14": VitSpec(768, 12, 12),
     "dinov2_vitl14": VitSpec(1024, 24, 16),
     "vit_t14": VitSpec(192, 6, 3),
+    "vit_n14": VitSpec(128, 4, 2),
 }
-"""The official DINOv2 S/14, B/14 and L/14 shapes, and a tiny width for CPU real time (no pretrained weights)."""
+"""The official DINOv2 S/14, B/14 and L/14 shapes, and two small widths for CPU real time (trained from
+scratch; no pretrained weights exist for them)."""
 
 
 class PatchEmbed(nn.Module):
