@@ -12,6 +12,12 @@ XY_LIMIT = 10.0
 Z_RANGE = (-10.0, 100.0)
 
 
+def usable_hands(joints: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """(..., 2) bool: hands marked valid whose 21 joints are all finite ((..., 42, 3) or (..., 2, 21, 3))."""
+    hands = np.asarray(joints).reshape(*np.shape(valid)[:-1], 2, 21, 3)
+    return np.asarray(valid, bool) & np.all(np.isfinite(hands), axis=(-1, -2))
+
+
 def prepare_poses(joints: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Official rules on (..., 42, 3) WiLoR joints and (..., 2) hand validity → float32 model input.
 
@@ -19,8 +25,7 @@ def prepare_poses(joints: np.ndarray, valid: np.ndarray) -> np.ndarray:
     [−10, 10] and z to [−10, 100], so the normalised input is bounded whatever the values.
     """
     joints = np.asarray(joints, np.float64).reshape(*np.shape(valid)[:-1], 2, 21, 3).copy()
-    ok = np.asarray(valid, bool) & np.all(np.isfinite(joints), axis=(-1, -2))
-    joints[~ok] = INVALID_JOINT
+    joints[~usable_hands(joints, valid)] = INVALID_JOINT
     joints[..., :2] = np.clip(joints[..., :2], -XY_LIMIT, XY_LIMIT)
     joints[..., 2] = np.clip(joints[..., 2], *Z_RANGE)
     return joints.reshape(*joints.shape[:-3], 42, 3).astype(np.float32)

@@ -1,0 +1,93 @@
+"""Live mode: the streaming engine on its own thread, latest-wins.
+
+`submit` never blocks: it puts the snapshot into a one-slot mailbox, replacing (and counting as dropped)
+one the engine has not taken yet. So the engine always works on the newest frame and never builds a
+backlog; the latency of each prediction (capture → prediction) stays bounded by about two engine steps.
+"""
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from devices.snapshot import Snapshot
+from inference.prediction import Prediction
+from inference.streaming_engine import StreamingEngine
+
+
+@dataclass
+class LiveStats:
+    submitted: int = 0
+    processed: int = 0
+    dropped: int = 0
+
+
+class LiveEngine:
+    """Use as a context manager (or start/stop). `latest()` is the newest Prediction; `on_prediction` is
+    called on the engine thread for each one. An exception in the engine stops the thread and is kept in
+    `error` (re-raised by `stop`)."""
+
+    def __init__(self, engine: StreamingEngine, on_prediction: Callable[[Prediction], None] | None = None) -> None:
+        self.engine = engine
+        self.on_prediction = on_prediction
+        self.stats = LiveStats()
+        self.error: BaseException | None = None
+        self._pending: Snapshot | None = None
+        self._latest: Prediction | None = None
+        self._running = False
+        self._wake = threading.Condition()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> "LiveEngine":
+        self._running = True
+        self._thread = threading.Thread(target=self._run, name="touchanything-engine", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self, timeout: float = 10.0) -> None:
+        with self._wake:
+            self._running = False
+            self._wake.notify()
+        if self._thread is not None:
+            self._thread.join(timeout)
+        if self.error is not None:
+            raise self.error
+
+    def __enter__(self) -> "LiveEngine":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def submit(self, snapshot: Snapshot) -> None:
+        with self._wake:
+            self.stats.submitted += 1
+            if self._pending is not None:
+                self.stats.dropped += 1
+            self._pending = snapshot
+            self._wake.notify()
+
+    def latest(self) -> Prediction | None:
+        return self._latest
+
+    def idle(self) -> bool:
+        """Nothing waiting in the mailbox (the engine may still be working on the last snapshot)."""
+        return self._pending is None
+
+    def _take(self) -> Snapshot | None:
+        with self._wake:
+            while self._running and self._pending is None:
+                self._wake.wait()
+            snapshot, self._pending = self._pending, None
+            return snapshot if self._running else None
+
+    def _run(self) -> None:
+        try:
+            while (snapshot := self._take()) is not None:
+                for prediction in self.engine.step(snapshot):
+                    self._latest = prediction
+                    if self.on_prediction is not None:
+                        self.on_prediction(prediction)
+                self.stats.processed += 1
+        except BaseException as exc:  # kept for the owner thread; the live loop must not die silently
+            self.error = exc
