@@ -25,7 +25,8 @@ class EngineConfig:
         stitched (official offline average over the 8 clips covering a frame: 14 frames = 467 ms).
     every: predict every k-th frame and hold the last prediction in between (newest output only).
     invalid_hands: skip (a hand without a valid pose is not predicted) or official (fed as −10 joints
-        and predicted anyway)."""
+        and predicted anyway).
+    threads: CPU threads for the model (see `compute_threads`)."""
 
     runtime: str = "torch"
     precision: str = "fp32"
@@ -35,6 +36,11 @@ class EngineConfig:
     output: str = "newest"
     every: int = 1
     invalid_hands: str = "skip"
+    threads: int | None = None
+
+    def compute_threads(self) -> int:
+        """CPU threads for the model (None: all cores but one, so capture, decoding and display keep a core)."""
+        return self.threads or max(1, (os.cpu_count() or 1) - 1)
 
     def check(self) -> "EngineConfig":
         check_runtime(self.runtime, self.precision, self.device)
@@ -44,6 +50,8 @@ class EngineConfig:
             raise UserError(f"unknown invalid-hand mode {self.invalid_hands!r}; choose from {', '.join(INVALID_HANDS)}")
         if not isinstance(self.every, int) or self.every < 1:
             raise UserError(f"prediction rate must be a whole number ≥ 1 (every k-th frame), got {self.every!r}")
+        if self.threads is not None and (not isinstance(self.threads, int) or self.threads < 1):
+            raise UserError(f"threads must be a whole number ≥ 1, got {self.threads!r}")
         if self.every > 1 and self.output != "newest":
             raise UserError("predicting every k-th frame needs the newest-frame output")
         unknown = [v for v in self.views if v not in VIEW_NAMES]
@@ -87,5 +95,5 @@ def onnx_folder(model: TouchAnything, folder: Path | None, precision: str) -> Pa
 def make_runtime(model: TouchAnything, config: EngineConfig) -> TorchRuntime | OnnxRuntime:
     config.check()
     if config.runtime == "torch":
-        return TorchRuntime(model, config.precision, config.device)
-    return OnnxRuntime(onnx_folder(model, config.onnx_dir, config.precision), config.precision)
+        return TorchRuntime(model, config.precision, config.device, config.compute_threads())
+    return OnnxRuntime(onnx_folder(model, config.onnx_dir, config.precision), config.precision, config.compute_threads())

@@ -37,8 +37,11 @@ def check_runtime(runtime: str, precision: str, device: str = "cpu") -> None:
 class TorchRuntime:
     """The model's own modules under torch; bf16/fp16 through autocast, results returned as float32."""
 
-    def __init__(self, model: TouchAnything, precision: str = "fp32", device: str = "cpu") -> None:
+    def __init__(self, model: TouchAnything, precision: str = "fp32", device: str = "cpu", threads: int | None = None) -> None:
+        """`threads` sets torch's intra-op thread count, which is process-wide (None: leave it)."""
         check_runtime("torch", precision, device)
+        if threads is not None:
+            torch.set_num_threads(threads)
         self.name, self.precision, self.device = "torch", precision, torch.device(device)
         model = model.to(self.device).eval()
         self.encoder, self.window_head = FrameEncoder(model), WindowHead(model)
@@ -65,7 +68,7 @@ class TorchRuntime:
 class OnnxRuntime:
     """The two graphs written by `inference.onnx_export` under ONNX Runtime (CPU execution provider)."""
 
-    def __init__(self, folder: Path, precision: str = "fp32") -> None:
+    def __init__(self, folder: Path, precision: str = "fp32", threads: int | None = None) -> None:
         import onnxruntime as ort
 
         check_runtime("onnx", precision)
@@ -75,6 +78,9 @@ class OnnxRuntime:
         options = ort.SessionOptions()
         options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
         options.log_severity_level = 3
+        options.intra_op_num_threads = threads or 0
+        # Spinning worker threads would steal the cores from preprocessing and the other graph between calls.
+        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
         try:
             self._encoder, self._head = (ort.InferenceSession(str(Path(folder) / files[part]), options,
                                                               providers=["CPUExecutionProvider"])

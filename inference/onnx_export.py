@@ -15,7 +15,7 @@ import io
 import json
 import logging
 import warnings
-from contextlib import redirect_stderr, redirect_stdout
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import torch
@@ -32,9 +32,24 @@ WINDOW = 8
 OPSET = 18
 
 
-def _export(module: torch.nn.Module, args: tuple, names: list[str], dynamic: dict, path: Path) -> None:
+@contextmanager
+def quiet_exporter():
+    """The exporter reports progress and missing optional ops (torchvision) on stdout, stderr and its loggers."""
+    loggers = [logging.getLogger(name) for name in ("torch.onnx", "onnxscript")]
+    levels = [logger.level for logger in loggers]
     with warnings.catch_warnings(), redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()):
         warnings.simplefilter("ignore")
+        for logger in loggers:
+            logger.setLevel(logging.ERROR)
+        try:
+            yield
+        finally:
+            for logger, level in zip(loggers, levels):
+                logger.setLevel(level)
+
+
+def _export(module: torch.nn.Module, args: tuple, names: list[str], dynamic: dict, path: Path) -> None:
+    with quiet_exporter():
         program = torch.onnx.export(module, args, dynamo=True, input_names=names, output_names=[path.stem],
                                     dynamic_shapes=dynamic, opset_version=OPSET, verbose=False)
     program.save(str(path))

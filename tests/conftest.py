@@ -95,3 +95,13 @@ def tiny_checkpoint(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("ckpt") / "best_model.pth"
     save_checkpoint(path, build_model(PRESETS["tiny"]))
     return path
+
+
+@pytest.fixture(autouse=True)
+def restore_torch_threads():
+    """Streaming engines set torch's process-wide thread count; give every test the default back."""
+    import torch
+
+    threads = torch.get_num_threads()
+    yield
+    torch.set_num_threads(threads)

@@ -1,0 +1,108 @@
+"""Benchmark outputs: the target checks, a Markdown table, the JSON record and the Pareto plot (PNG)."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+P99_TARGET_MS = 33.0
+NAIVE_RATIO_TARGET = 5.0
+PRECISION_LOSS_TARGET = 0.01
+
+
+def _reference(rows: list[dict], preset: str) -> dict | None:
+    return next((r for r in rows if r["preset"] == preset and r["runtime"] == "torch" and r["precision"] == "fp32"
+                 and r["rate"] == 1 and r["output"] == "newest" and r["invalid_hands"] == "skip"
+                 and r["views"].count("+") == 2 and r["volumetric_iou"] is not None), None)
+
+
+def target_checks(rows: list[dict], naive: dict, smallest: str) -> list[dict]:
+    """The issue's three targets, each {target, value, limit, met} (value None when not measured)."""
+    checks = []
+    fast = next((r for r in rows if r["preset"] == smallest and r["runtime"] == "onnx" and r["precision"] == "int8"
+                 and r["views"].count("+") == 2 and r["rate"] == 1 and r["output"] == "newest"), None)
+    checks.append({"target": f"{smallest} ONNX int8, all views: p99 per-frame latency (ms)",
+                   "value": fast and fast["p99_ms"], "limit": f"≤ {P99_TARGET_MS:g}"})
+    checks.append({"target": "paper preset: naive per-frame time / streaming per-frame time",
+                   "value": naive.get("paper", {}).get("ratio"), "limit": f"≥ {NAIVE_RATIO_TARGET:g}"})
+    for row in rows:
+        reference = _reference(rows, row["preset"])
+        same_knobs = reference and all(row[k] == reference[k] for k in ("views", "rate", "output", "invalid_hands"))
+        if row["precision"] in ("int8", "bf16") and same_knobs and row["volumetric_iou"] is not None:
+            checks.append({"target": f"{row['label']}: volumetric IoU lost against fp32",
+                           "value": reference["volumetric_iou"] - row["volumetric_iou"],
+                           "limit": f"≤ {PRECISION_LOSS_TARGET:g}"})
+    for check in checks:
+        value, limit = check["value"], check["limit"]
+        bound = float(limit.split()[-1])
+        check["met"] = None if value is None else (value <= bound if limit.startswith("≤") else value >= bound)
+    return checks
+
+
+def _fmt(value, digits: int = 3) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "n/a"
+    return f"{value:.{digits}f}" if isinstance(value, float) else str(value)
+
+
+def markdown(record: dict) -> str:
+    lines = ["# `touchanything bench`", "", f"{record['machine']}; {'quick' if record['quick'] else 'full'} run; "
+             f"accuracy on {record['accuracy_data']}.", "",
+             "| setting | p50 ms | p99 ms | frames/s | look-ahead ms | contact IoU | volumetric IoU | "
+             "agreement V-IoU | max abs diff | peak RSS MB |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in record["rows"]:
+        lines.append(f"| {r['label']} | {_fmt(r['p50_ms'], 1)} | {_fmt(r['p99_ms'], 1)} | {_fmt(r.get('throughput_fps'), 1)} | "
+                     f"{_fmt(r['lookahead_ms'], 0)} | {_fmt(r['contact_iou'])} | {_fmt(r['volumetric_iou'])} | "
+                     f"{_fmt(r['agreement_viou'])} | {_fmt(r.get('agreement_max_abs'))} | {_fmt(r['peak_rss_mb'], 0)} |")
+    lines += ["", "## Streaming cache against the naive recompute (torch fp32, all views)", "",
+              "| preset | naive ms/frame | streaming ms/frame | naive / streaming |", "|---|---|---|---|"]
+    for preset, n in record["naive"].items():
+        lines.append(f"| {preset} | {_fmt(n['naive_p50_ms'], 1)} | {_fmt(n['streaming_p50_ms'], 1)} | {_fmt(n['ratio'], 1)}× |")
+    lines += ["", "## Targets", "", "| target | measured | limit | met |", "|---|---|---|---|"]
+    for c in record["targets"]:
+        met = {True: "yes", False: "**no**", None: "not measured"}[c["met"]]
+        lines.append(f"| {c['target']} | {_fmt(c['value'])} | {c['limit']} | {met} |")
+    return "\n".join(lines) + "\n"
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the points no other point beats on both latency (lower) and accuracy (higher)."""
+    return [i for i, (x, y) in enumerate(points)
+            if not any((a <= x and b >= y) and (a < x or b > y) for a, b in points)]
+
+
+def pareto_plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    measured = [r for r in rows if r["volumetric_iou"] is not None and not math.isnan(r["volumetric_iou"])]
+    points = [(r["p99_ms"], r["volumetric_iou"]) for r in measured]
+    fig, ax = plt.subplots(figsize=(9, 6), dpi=110)
+    for preset in sorted({r["preset"] for r in measured}):
+        chosen = [p for p, r in zip(points, measured) if r["preset"] == preset]
+        ax.scatter(*zip(*chosen), label=preset, s=28)
+    front = sorted(points[i] for i in pareto_front(points))
+    if front:
+        ax.plot(*zip(*front), "k--", lw=1, label="Pareto front")
+    for (x, y), r in zip(points, measured):
+        ax.annotate(r["label"].split(" ", 1)[1], (x, y), fontsize=6, xytext=(3, 2), textcoords="offset points")
+    ax.axvline(P99_TARGET_MS, color="grey", lw=0.8, ls=":")
+    ax.set_xscale("log")
+    ax.set_xlabel("p99 per-frame engine latency (ms, log scale)")
+    ax.set_ylabel("volumetric IoU (official, held-out episodes)")
+    ax.set_title("TouchAnything streaming engine: latency against accuracy")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def write_outputs(record: dict, out_dir: Path) -> list[Path]:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [out_dir / "engine.json", out_dir / "engine.md", out_dir / "engine_pareto.png"]
+    paths[0].write_text(json.dumps(record, indent=1) + "\n")
+    paths[1].write_text(markdown(record))
+    pareto_plot(record["rows"], paths[2])
+    return paths

@@ -1,0 +1,82 @@
+"""The benchmark machinery on a random nano model and the bundled sample (the full run is `touchanything bench`)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from app.cli import main
+from app.demo_command import sample_episodes
+from inference.bench import BenchPlan, agreement, bench_model, naive_latency, settings_for
+from inference.bench_data import latency_clip, load_episode
+from inference.bench_report import pareto_front, target_checks, write_outputs
+from inference.model_config import preset
+from inference.touch_model import TouchAnything
+
+
+@pytest.fixture(scope="module")
+def nano_rows():
+    torch.manual_seed(0)
+    model = TouchAnything(preset("nano")).eval()
+    path = sample_episodes()[0]
+    episodes = [load_episode(path, 112, 40)]
+    clip = latency_clip(path, 20)
+    rows, naive = bench_model("nano", model, episodes, clip, BenchPlan(True, rounds=2, per_round=5, naive_steps=3),
+                              progress=lambda message: None)
+    return rows, naive
+
+
+def test_rows_have_the_documented_fields(nano_rows):
+    rows, naive = nano_rows
+    assert [(r["runtime"], r["precision"]) for r in rows] == [("torch", "fp32"), ("onnx", "int8")]
+    for row in rows:
+        for key in ("preset", "runtime", "precision", "views", "rate", "output", "p50_ms", "p99_ms", "contact_iou",
+                    "volumetric_iou", "agreement_viou", "peak_rss_mb"):
+            assert key in row
+        assert row["views"] == "ego+wrist_left+wrist_right" and row["latency_frames"] == 10
+        assert 0 < row["p50_ms"] <= row["p99_ms"] and row["peak_rss_mb"] > 0
+        assert 0 <= row["volumetric_iou"] <= 1 and row["throughput_fps"] > 0
+    assert rows[0]["agreement_viou"] == 1.0 and rows[0]["agreement_max_abs"] == 0.0
+    assert 0.8 < rows[1]["agreement_viou"] <= 1.0
+    assert naive["naive_p50_ms"] > naive["streaming_p50_ms"] and naive["ratio"] > 1
+
+
+def test_report_files_and_targets(nano_rows, tmp_path):
+    rows, naive = nano_rows
+    record = {"machine": "test", "quick": True, "accuracy_data": "sample", "rows": rows,
+              "naive_over_streaming": {"nano": naive["ratio"]}, "naive": {"nano": naive},
+              "targets": target_checks(rows, {"nano": naive}, "nano")}
+    paths = write_outputs(record, tmp_path)
+    assert json.loads(paths[0].read_text())["rows"][1]["runtime"] == "onnx"
+    assert "| target |" in paths[1].read_text() and paths[2].stat().st_size > 10_000
+    checks = {c["target"].split(":")[0]: c for c in record["targets"]}
+    assert checks["nano ONNX int8, all views"]["met"] in (True, False)
+    assert checks["paper preset"]["met"] is None  # not measured here
+
+
+def test_full_grid_turns_one_knob_at_a_time():
+    grid = settings_for("nano", quick=False)
+    assert grid[0] == settings_for("nano", quick=True)[0] and len(set(grid)) == len(grid) == 15
+    assert {s.output for s in grid} == {"newest", "centre", "stitched"} and {s.rate for s in grid} == {1, 2, 3}
+
+
+def test_pareto_front_and_agreement_helpers():
+    assert pareto_front([(10, 0.5), (20, 0.6), (30, 0.55), (5, 0.1)]) == [0, 1, 3]
+    a = [np.array([[0.2, np.nan], [0.4, 0.0]])]
+    assert agreement(a, a) == (1.0, 0.0)
+    assert np.isnan(agreement([np.zeros((2, 2))], [np.zeros((2, 2))])[0])  # 0/0
+
+
+def test_naive_recompute_is_timed_per_frame():
+    torch.manual_seed(0)
+    times = naive_latency(TouchAnything(preset("nano")).eval(), latency_clip(sample_episodes()[0], 3), steps=4)
+    assert times.shape == (4,) and np.all(times > 0)
+
+
+def test_bench_command_errors_are_clear(tmp_path, capsys):
+    assert main(["bench", "--quick", "--frames", "5", "--out", str(tmp_path)]) == 2
+    assert "--frames" in capsys.readouterr().err
+    assert main(["bench", "--quick", "--data", str(tmp_path / "none"), "--out", str(tmp_path)]) == 2
+    assert "none: not found" in capsys.readouterr().err

@@ -1,0 +1,103 @@
+"""ONNX export and runtimes, bf16, numerics at the extremes, and the user errors of runtime selection."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from app.cli import main
+from devices.errors import UserError
+from devices.snapshot import VIEW_NAMES, Snapshot
+from inference.checkpoint import build_model, save_checkpoint
+from inference.engine_config import EngineConfig, onnx_cache_dir
+from inference.engine_runtime import OnnxRuntime
+from inference.model_config import PRESETS
+from inference.streaming_engine import StreamingEngine
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """A random nano checkpoint and its ONNX export (fp32 + int8) made by the command line."""
+    torch.manual_seed(1)
+    folder = tmp_path_factory.mktemp("onnx")
+    model = build_model(PRESETS["nano"]).eval()
+    save_checkpoint(folder / "best_model.pth", model)
+    assert main(["export-onnx", "--checkpoint", str(folder / "best_model.pth"), "--out", str(folder / "graphs"),
+                 "--int8"]) == 0
+    return model, folder / "graphs"
+
+
+def stream(size: int, frames: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    for i in range(frames):
+        valid = np.array([True, i % 4 != 3])
+        yield Snapshot(i, i * 33_333, {v: rng.integers(0, 256, (size, size, 3), dtype=np.uint8) for v in VIEW_NAMES},
+                       (rng.normal(0, 2, (42, 3)) + [0, 0, 40]).astype(np.float32), valid)
+
+
+def outputs(engine: StreamingEngine, snapshots) -> np.ndarray:
+    return np.stack([p.pressure for s in snapshots for p in engine.step(s)])
+
+
+def test_export_writes_both_graphs_and_reports_agreement(exported, capsys):
+    _, graphs = exported
+    names = {p.name for p in graphs.iterdir()}
+    assert {"encoder.onnx", "head.onnx", "encoder.int8.onnx", "head.int8.onnx", "engine.json"} <= names
+    assert (graphs / "encoder.int8.onnx").stat().st_size < (graphs / "encoder.onnx").stat().st_size
+
+
+@pytest.mark.parametrize("views", [("ego",), VIEW_NAMES])
+def test_onnx_fp32_engine_equals_the_torch_engine(exported, views):
+    model, graphs = exported
+    reference = outputs(StreamingEngine(model, EngineConfig(views=views)), stream(112, 18))
+    onnx = outputs(StreamingEngine(model, EngineConfig(runtime="onnx", onnx_dir=graphs, views=views)), stream(112, 18))
+    assert float(np.nanmax(np.abs(onnx - reference))) < 1e-4
+
+
+@pytest.mark.parametrize("runtime,precision", [("onnx", "int8"), ("torch", "bf16")])
+def test_reduced_precision_stays_close_and_finite_at_the_extremes(exported, runtime, precision):
+    model, graphs = exported
+    config = EngineConfig(runtime=runtime, precision=precision, onnx_dir=graphs, invalid_hands="official")
+    reference = outputs(StreamingEngine(model, EngineConfig(invalid_hands="official")), stream(112, 16))
+    reduced = outputs(StreamingEngine(model, config), stream(112, 16))
+    assert float(np.nanmax(np.abs(reduced - reference))) < 0.1
+    engine = StreamingEngine(model, config)
+    images = [np.zeros((112, 112, 3), np.uint8), np.full((112, 112, 3), 255, np.uint8),
+              np.where(np.indices((112, 112, 3)).sum(0) % 2, 255, 0).astype(np.uint8)]
+    joints = [np.full((42, 3), 1e6, np.float32), np.full((42, 3), -1e6, np.float32), np.full((42, 3), np.nan, np.float32),
+              np.full((42, 3), np.inf, np.float32)]
+    for i in range(12):
+        frame = Snapshot(i, i, {v: images[i % 3] for v in VIEW_NAMES}, joints[i % 4], np.array([True, True]))
+        (prediction,) = engine.step(frame)
+        inside = prediction.pressure[~np.isnan(prediction.pressure)]
+        assert inside.size and np.all((inside >= 0) & (inside <= 1))
+
+
+def test_onnx_graphs_are_exported_once_into_the_cache(exported, tmp_path, monkeypatch):
+    model, _ = exported
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    StreamingEngine(model, EngineConfig(runtime="onnx", precision="int8"))
+    folder = onnx_cache_dir(model)
+    stamp = (folder / "engine.json").stat().st_mtime_ns
+    StreamingEngine(model, EngineConfig(runtime="onnx"))
+    assert (folder / "engine.json").stat().st_mtime_ns == stamp
+
+
+def test_runtime_selection_errors_are_clear(exported, tmp_path, capsys):
+    model, graphs = exported
+    bad = [(EngineConfig(runtime="tensorrt"), "unknown runtime"), (EngineConfig(precision="int8"), "no precision"),
+           (EngineConfig(precision="fp16"), "fp16 needs a GPU"), (EngineConfig(output="middle"), "output position"),
+           (EngineConfig(every=0), "whole number"), (EngineConfig(every=2, output="centre"), "newest"),
+           (EngineConfig(views=("wrist_left",)), "must include ego"),
+           (EngineConfig(runtime="onnx", onnx_dir=tmp_path), "export-onnx")]
+    for config, message in bad:
+        with pytest.raises(UserError, match=message):
+            StreamingEngine(model, config)
+    other = build_model(PRESETS["tiny"])
+    with pytest.raises(UserError, match="different model"):
+        StreamingEngine(other, EngineConfig(runtime="onnx", onnx_dir=graphs))
+    (tmp_path / "engine.json").write_text('{"files": {"fp32": {"encoder": "x.onnx", "head": "y.onnx"}}, "image_size": 112}')
+    with pytest.raises(UserError, match="cannot open the ONNX graphs"):
+        OnnxRuntime(tmp_path)
+    assert main(["export-onnx", "--checkpoint", str(tmp_path / "missing.pth"), "--out", str(tmp_path / "o")]) == 2
+    assert "missing.pth" in capsys.readouterr().err
