@@ -76,6 +76,7 @@ def pareto_plot(rows: list[dict], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     measured = [r for r in rows if r["volumetric_iou"] is not None and not math.isnan(r["volumetric_iou"])]
     points = [(r["p99_ms"], r["volumetric_iou"]) for r in measured]
@@ -90,6 +91,8 @@ def pareto_plot(rows: list[dict], path: Path) -> None:
         ax.annotate(r["label"].split(" ", 1)[1], (x, y), fontsize=6, xytext=(3, 2), textcoords="offset points")
     ax.axvline(P99_TARGET_MS, color="grey", lw=0.8, ls=":")
     ax.set_xscale("log")
+    ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.ScalarFormatter())
     ax.set_xlabel("p99 per-frame engine latency (ms, log scale)")
     ax.set_ylabel("volumetric IoU (official, held-out episodes)")
     ax.set_title("TouchAnything streaming engine: latency against accuracy")
