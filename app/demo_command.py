@@ -1,21 +1,24 @@
-"""`touchanything demo [EPISODE]`: replay an episode (default: the bundled sample) and summarise it."""
+"""`touchanything demo [EPISODE]`: the bundled sample through the bundled model, exported as a comparison
+video (cameras; measured, predicted and error pressure maps) with running metrics and latency."""
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
-from app.info_command import episode_lines
-from devices.episode_loader import find_raw_episodes, open_episode
+from devices.episode_loader import find_raw_episodes
 from devices.errors import UserError
-from devices.replay import ReplayConfig, ReplaySource
+from inference.checkpoint import load_model
+from inference.engine_config import EngineConfig
+from inference.streaming_engine import StreamingEngine
 
 SAMPLE_DIR = Path(__file__).resolve().parents[1] / "recordings" / "sample"
+DEMO_VIDEO = SAMPLE_DIR.parent / "demo.mp4"
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
-    parser = commands.add_parser("demo", help="replay the bundled sample episode and summarise it")
+    parser = commands.add_parser("demo", help="the bundled sample through the bundled model, as a comparison video")
     parser.add_argument("episode", type=Path, nargs="?", help="episode folder or .hdf5 (default: the bundled sample)")
+    parser.add_argument("--out", type=Path, default=DEMO_VIDEO, help=f"video to write (default: {DEMO_VIDEO})")
     parser.set_defaults(run=run)
 
 
@@ -25,23 +28,13 @@ def sample_episodes() -> list[Path]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from app.replay_command import DEFAULT_CHECKPOINT, replay_to_video
+
     path = args.episode
     if path is None:
         samples = sample_episodes()
         if not samples:
             raise UserError(f"{SAMPLE_DIR}: no bundled sample episode found; pass an episode path")
         path = samples[0]
-    with open_episode(path) as episode:
-        started = time.perf_counter()
-        frames = views = 0
-        for snapshot in ReplaySource(episode, ReplayConfig(speed=None)):
-            frames += 1
-            views += len(snapshot.images)
-        elapsed = max(time.perf_counter() - started, 1e-9)
-        if frames == 0:
-            raise UserError(f"{path}: no frames to replay")
-        print("\n".join(episode_lines(episode)))
-        realtime = frames / episode.fps / elapsed
-        print(f"replay    {frames} frames, {views} camera images in {elapsed:.2f} s "
-              f"({frames / elapsed:.0f} frames/s, {realtime:.1f}× real time)")
+    replay_to_video(path, StreamingEngine(load_model(DEFAULT_CHECKPOINT), EngineConfig()), args.out)
     return 0

@@ -6,6 +6,7 @@ import pytest
 
 from app.cli import main
 from devices.episode_loader import open_episode
+from devices.video_io import VideoReader
 from tests.conftest import write_episode
 
 
@@ -74,16 +75,19 @@ def test_bad_options_give_one_clear_line(episode_dir, tmp_path, capsys, argv, me
     assert code == 2 and message in err and "Traceback" not in err
 
 
-def test_demo_replays_an_episode(episode_dir, capsys):
-    assert main(["demo", str(episode_dir)]) == 0
+def test_demo_replays_an_episode_into_a_video(episode_dir, tmp_path, capsys):
+    assert main(["demo", str(episode_dir), "--out", str(tmp_path / "demo.mp4")]) == 0
     out = capsys.readouterr().out
-    assert "replay    40 frames, 120 camera images" in out and "real time" in out
+    assert "frames    40 written, 40 with a prediction" in out and "engine    " in out
+    with VideoReader(tmp_path / "demo.mp4") as video:
+        assert video.num_frames == 40
 
 
-def test_demo_replays_the_bundled_sample(capsys):
+def test_demo_replays_the_bundled_sample(tmp_path, capsys):
     from app.demo_command import sample_episodes
 
     assert len(sample_episodes()) == 3
-    assert main(["demo"]) == 0
+    assert main(["demo", "--out", str(tmp_path / "demo.mp4")]) == 0
     out = capsys.readouterr().out
-    assert "replay    300 frames, 900 camera images" in out and "problems  none" in out
+    assert "frames    300 written, 300 with a prediction" in out and "problems  none" in out
+    assert "volumetric_iou 0." in out

@@ -1,0 +1,59 @@
+"""`touchanything replay`: headless export through the engine, with and without ground truth, and its errors."""
+from __future__ import annotations
+
+import numpy as np
+
+from app.cli import main
+from devices.episode_loader import open_episode
+from devices.tactile_layout import TactileLayout
+from devices.video_io import VideoReader
+from inference.running_metrics import RunningMetrics
+
+
+def test_replay_exports_a_playable_video_with_metrics(episode_dir, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))  # the ONNX graphs are exported there
+    out = tmp_path / "video" / "replay.mp4"
+    assert main(["replay", str(episode_dir), "--views", "ego", "wrist_left", "--runtime", "onnx", "--precision", "int8",
+                 "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "frames    40 written, 40 with a prediction" in printed and "contact_iou" in printed
+    with VideoReader(out) as video:
+        assert video.num_frames == 40
+        frame = video.read(39)
+    assert frame.shape == (630, 1440, 3) and frame[:270].std() > 5  # the camera row is not blank
+
+
+def test_an_episode_without_ground_truth_shows_the_prediction_only(episode_dir, tmp_path, capsys):
+    (episode_dir / "pressure_grids.npz").unlink()
+    (episode_dir / "jq_pressure.json").unlink()
+    with open_episode(episode_dir) as episode:
+        assert episode.pressure is None
+    assert main(["replay", str(episode_dir), "--out", str(tmp_path / "r.mp4")]) == 0
+    printed = capsys.readouterr().out
+    assert "metrics   n/a" in printed and "40 with a prediction" in printed
+
+
+def test_replay_errors_are_one_clear_line(episode_dir, tmp_path, capsys):
+    cases = [(["replay", str(tmp_path / "none"), "--out", str(tmp_path / "a.mp4")], "not found"),
+             (["replay", str(episode_dir), "--out", str(tmp_path / "a.avi")], ".mp4"),
+             (["replay", str(episode_dir), "--precision", "int4", "--out", str(tmp_path / "a.mp4")], "no precision"),
+             (["replay", str(episode_dir), "--views", "wrist_left", "--out", str(tmp_path / "a.mp4")], "include ego"),
+             (["replay", str(episode_dir), "--checkpoint", str(tmp_path / "x.pth"), "--out", str(tmp_path / "a.mp4")],
+              "x.pth")]
+    for argv, message in cases:
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err
+
+
+def test_running_metrics_roll_and_accumulate():
+    layout = TactileLayout.default()
+    metrics = RunningMetrics(layout.bend, window=3)
+    assert np.isnan(metrics.cumulative()["volumetric_iou"]) and np.isnan(metrics.rolling()["contact_iou"])
+    full = np.where(layout.valid, 1.0, np.nan)
+    for value in (1.0, 1.0, 0.0, 0.0, 0.0):
+        metrics.add(full * value, full)
+    assert metrics.rolling()["volumetric_iou"] == 0.0
+    assert abs(metrics.cumulative()["volumetric_iou"] - 0.4) < 1e-9
+    metrics.reset()
+    assert metrics.frames == 0

@@ -1,0 +1,94 @@
+"""Headless replay: every frame of an episode through the streaming engine into a comparison video, with
+running official metrics and engine latency in the footer, and a summary at the end."""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from devices.episode import Episode
+from devices.replay import ReplayConfig, ReplaySource
+from devices.tactile_layout import TactileLayout
+from inference.metrics import ground_truth_for_metrics
+from inference.prediction import Prediction
+from inference.running_metrics import RunningMetrics
+from inference.streaming_engine import StreamingEngine
+from viz.comparison_video import comparison_frame, write_comparison_video
+
+
+@dataclass
+class ReplaySummary:
+    """frames written; predicted: frames with a prediction; metrics: cumulative official metrics (None
+    without ground truth); latency_ms / step_ms: per-prediction latency and engine step times."""
+
+    frames: int = 0
+    predicted: int = 0
+    metrics: dict[str, float] | None = None
+    latency_ms: list[float] = field(default_factory=list)
+    step_ms: list[float] = field(default_factory=list)
+
+    def lines(self) -> list[str]:
+        out = [f"frames    {self.frames} written, {self.predicted} with a prediction"]
+        if self.metrics is None:
+            out.append("metrics   n/a (the episode has no ground-truth pressure)")
+        else:
+            out.append("metrics   " + ", ".join(f"{k} {_value(v)}" for k, v in self.metrics.items() if k != "mae_left"
+                                                and k != "mae_right"))
+        if self.step_ms:
+            step, latency = np.percentile(self.step_ms, [50, 99]), np.percentile(self.latency_ms, [50, 99])
+            out.append(f"engine    {step[0]:.1f} ms per frame (p99 {step[1]:.1f}); latency p50 {latency[0]:.1f} ms, "
+                       f"p99 {latency[1]:.1f} ms")
+        return out
+
+
+def _value(value: float) -> str:
+    return "n/a" if math.isnan(value) else f"{value:.3f}"
+
+
+def _footer(snapshot_index: int, total: int, prediction: Prediction | None, metrics: RunningMetrics | None) -> str:
+    parts = [f"Frame {snapshot_index:04d}/{total}"]
+    if prediction is not None:
+        parts.append(f"{prediction.status} | {'+'.join(prediction.views_used)} | {prediction.timings_ms.get('total', 0):.0f} ms")
+    if metrics is not None:
+        rolling, total_metrics = metrics.rolling(), metrics.cumulative()
+        parts.append(f"V-IoU {_value(rolling['volumetric_iou'])} (3 s) {_value(total_metrics['volumetric_iou'])} (all)")
+        parts.append(f"C-IoU {_value(total_metrics['contact_iou'])}")
+    return "  |  ".join(parts)
+
+
+def replay_frames(episode: Episode, engine: StreamingEngine, views: tuple[str, ...], summary: ReplaySummary,
+                  progress: Callable[[int], None] = lambda frame: None):
+    """Yield comparison frames for every frame of the episode (replay mode: every frame is processed)."""
+    gt = None
+    if episode.pressure is not None:
+        gt = ground_truth_for_metrics(episode.pressure.grids, bool(episode.pressure.attrs.get("normalized", False)))
+    metrics = RunningMetrics(TactileLayout.default().bend) if gt is not None else None
+    engine.reset()
+    latest: Prediction | None = None
+    for snapshot in ReplaySource(episode, ReplayConfig(speed=None, views=views)):
+        for prediction in engine.step(snapshot):
+            latest = prediction
+            summary.latency_ms.append(prediction.latency_ms)
+            if "total" in prediction.timings_ms:
+                summary.step_ms.append(prediction.timings_ms["total"])
+        shown = latest.pressure if latest is not None and latest.frame_index == snapshot.frame_index else None
+        truth = gt[snapshot.frame_index] if gt is not None else None
+        if shown is not None:
+            summary.predicted += 1
+            if metrics is not None:
+                metrics.add(shown, truth)
+        summary.frames += 1
+        progress(snapshot.frame_index)
+        yield comparison_frame(snapshot.images, truth, shown, _footer(snapshot.frame_index, episode.num_frames, latest, metrics))
+    summary.metrics = metrics.cumulative() if metrics is not None else None
+
+
+def export_replay(episode: Episode, engine: StreamingEngine, views: tuple[str, ...], out: Path,
+                  progress: Callable[[int], None] = lambda frame: None) -> ReplaySummary:
+    """Write the comparison video of the whole episode to `out` (H.264 MP4); return the summary."""
+    summary = ReplaySummary()
+    write_comparison_video(out, replay_frames(episode, engine, views, summary, progress))
+    return summary
