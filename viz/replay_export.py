@@ -1,5 +1,6 @@
-"""Headless replay: every frame of an episode through the streaming engine into a comparison video, with
-running official metrics and engine latency in the footer, and a summary at the end."""
+"""Headless replay: every frame of an episode through the streaming engine into a comparison video (the
+head camera with the hand skeletons and predicted pressure on their joints), with running official metrics
+and engine latency in the footer, and a summary at the end."""
 from __future__ import annotations
 
 import math
@@ -17,6 +18,7 @@ from inference.prediction import Prediction
 from inference.running_metrics import RunningMetrics
 from inference.streaming_engine import StreamingEngine
 from viz.comparison_video import comparison_frame, write_comparison_video
+from viz.hand_projection import draw_hands
 
 
 @dataclass
@@ -82,7 +84,10 @@ def replay_frames(episode: Episode, engine: StreamingEngine, views: tuple[str, .
                 metrics.add(shown, truth)
         summary.frames += 1
         progress(snapshot.frame_index)
-        yield comparison_frame(snapshot.images, truth, shown, _footer(snapshot.frame_index, episode.num_frames, latest, metrics))
+        images = dict(snapshot.images)
+        if "ego" in images:
+            images["ego"] = draw_hands(images["ego"], snapshot.joints, snapshot.joints_valid, shown)
+        yield comparison_frame(images, truth, shown, _footer(snapshot.frame_index, episode.num_frames, latest, metrics))
     summary.metrics = metrics.cumulative() if metrics is not None else None
 
 
