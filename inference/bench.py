@@ -23,7 +23,8 @@ from devices.tactile_layout import TactileLayout
 from inference.bench_data import BenchEpisode, resident_mb
 from inference.engine_config import EngineConfig
 from inference.frame_ring import CLIP_LENGTH, FRAME_INTERVAL, SPAN
-from inference.metrics import MetricAccumulator, aggregate
+from inference.evaluation import trajectory_metrics
+from inference.metrics import aggregate
 from inference.onnx_export import export_onnx
 from inference.pose_encoder import prepare_poses
 from inference.preprocess import resize_frame, to_model_input
@@ -83,13 +84,8 @@ def replay_outputs(engine: StreamingEngine, episode: BenchEpisode, peak: list[fl
 
 
 def official_metrics(outputs: list[np.ndarray], episodes: list[BenchEpisode], bend: np.ndarray) -> dict[str, float]:
-    rows = []
-    for out, episode in zip(outputs, episodes):
-        has = ~np.all(np.isnan(out.reshape(len(out), -1)), axis=1)
-        accumulator = MetricAccumulator(bend)
-        accumulator.add(out[has], episode.gt[has])
-        rows.append(accumulator.result())
-    return aggregate(rows)
+    """Per-episode official metrics over the frames with a prediction, then nanmean across episodes."""
+    return aggregate([trajectory_metrics(out, episode.gt, bend) for out, episode in zip(outputs, episodes)])
 
 
 def agreement(outputs: list[np.ndarray], reference: list[np.ndarray]) -> tuple[float, float]:
