@@ -16,26 +16,25 @@ def _reference(rows: list[dict], preset: str) -> dict | None:
                  and r["views"].count("+") == 2 and r["volumetric_iou"] is not None), None)
 
 
+def _check(target: str, value: float | None, bound: float, at_most: bool) -> dict:
+    met = None if value is None else (value <= bound if at_most else value >= bound)
+    return {"target": target, "value": value, "limit": f"{'≤' if at_most else '≥'} {bound:g}", "met": met}
+
+
 def target_checks(rows: list[dict], naive: dict, smallest: str) -> list[dict]:
-    """The issue's three targets, each {target, value, limit, met} (value None when not measured)."""
-    checks = []
+    """The issue's three targets, each {target, value, limit, met} (value and met None when not measured)."""
     fast = next((r for r in rows if r["preset"] == smallest and r["runtime"] == "onnx" and r["precision"] == "int8"
                  and r["views"].count("+") == 2 and r["rate"] == 1 and r["output"] == "newest"), None)
-    checks.append({"target": f"{smallest} ONNX int8, all views: p99 per-frame latency (ms)",
-                   "value": fast and fast["p99_ms"], "limit": f"≤ {P99_TARGET_MS:g}"})
-    checks.append({"target": "paper preset: naive per-frame time / streaming per-frame time",
-                   "value": naive.get("paper", {}).get("ratio"), "limit": f"≥ {NAIVE_RATIO_TARGET:g}"})
+    checks = [_check(f"{smallest} ONNX int8, all views: p99 per-frame latency (ms)", fast and fast["p99_ms"],
+                     P99_TARGET_MS, at_most=True),
+              _check("paper preset: naive per-frame time / streaming per-frame time",
+                     naive.get("paper", {}).get("ratio"), NAIVE_RATIO_TARGET, at_most=False)]
     for row in rows:
         reference = _reference(rows, row["preset"])
         same_knobs = reference and all(row[k] == reference[k] for k in ("views", "rate", "output", "invalid_hands"))
         if row["precision"] in ("int8", "bf16") and same_knobs and row["volumetric_iou"] is not None:
-            checks.append({"target": f"{row['label']}: volumetric IoU lost against fp32",
-                           "value": reference["volumetric_iou"] - row["volumetric_iou"],
-                           "limit": f"≤ {PRECISION_LOSS_TARGET:g}"})
-    for check in checks:
-        value, limit = check["value"], check["limit"]
-        bound = float(limit.split()[-1])
-        check["met"] = None if value is None else (value <= bound if limit.startswith("≤") else value >= bound)
+            checks.append(_check(f"{row['label']}: volumetric IoU lost against fp32",
+                                 reference["volumetric_iou"] - row["volumetric_iou"], PRECISION_LOSS_TARGET, at_most=True))
     return checks
 
 
