@@ -12,6 +12,7 @@ import onnxruntime
 import torch
 
 from app.demo_command import SAMPLE_DIR
+from app.engine_choice import MODELS_DIR
 from devices.errors import UserError
 from inference.bench import BenchPlan, bench_model
 from inference.bench_data import episode_paths, latency_clip, load_episode
@@ -20,7 +21,7 @@ from inference.checkpoint import load_model
 from inference.model_config import preset
 from inference.touch_model import TouchAnything
 
-MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
+
 LATENCY_CLIP_FRAMES = 60
 
 

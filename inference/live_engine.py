@@ -33,6 +33,7 @@ class LiveEngine:
         self.stats = LiveStats()
         self.error: BaseException | None = None
         self._pending: Snapshot | None = None
+        self._calls: list[Callable[[], None]] = []
         self._latest: Prediction | None = None
         self._running = False
         self._wake = threading.Condition()
@@ -67,6 +68,17 @@ class LiveEngine:
             self._pending = snapshot
             self._wake.notify()
 
+    def call(self, action: Callable[[], None]) -> None:
+        """Run `action` on the engine thread before its next step (e.g. reset after a seek, or swap in
+        another engine): never while a step is in progress."""
+        with self._wake:
+            self._calls.append(action)
+            self._wake.notify()
+
+    def replace_engine(self, engine: StreamingEngine) -> None:
+        """Continue with `engine` from the next snapshot on."""
+        self.call(lambda: setattr(self, "engine", engine))
+
     def latest(self) -> Prediction | None:
         return self._latest
 
@@ -74,16 +86,24 @@ class LiveEngine:
         """Nothing waiting in the mailbox (the engine may still be working on the last snapshot)."""
         return self._pending is None
 
-    def _take(self) -> Snapshot | None:
+    def _take(self) -> tuple[list[Callable[[], None]], Snapshot | None] | None:
         with self._wake:
-            while self._running and self._pending is None:
+            while self._running and self._pending is None and not self._calls:
                 self._wake.wait()
+            if not self._running:
+                return None
+            calls, self._calls = self._calls, []
             snapshot, self._pending = self._pending, None
-            return snapshot if self._running else None
+            return calls, snapshot
 
     def _run(self) -> None:
         try:
-            while (snapshot := self._take()) is not None:
+            while (taken := self._take()) is not None:
+                calls, snapshot = taken
+                for action in calls:
+                    action()
+                if snapshot is None:
+                    continue
                 for prediction in self.engine.step(snapshot):
                     self._latest = prediction
                     if self.on_prediction is not None:

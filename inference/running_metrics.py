@@ -5,35 +5,47 @@ from collections import deque
 
 import numpy as np
 
-from inference.metrics import MetricAccumulator
+from inference.metrics import CONTACT_THRESHOLD, MetricAccumulator
 
 
 class RunningMetrics:
     """`add(pred, gt)` per frame ((2, 21, 21) each, NaN outside the layout); `cumulative()` and `rolling()`
-    give the official metric dict (NaN where undefined, e.g. no contact yet). A seek should `reset()`."""
+    give the official metric dict (NaN where undefined, e.g. no contact yet). A seek should `reset()`.
+    `threshold`: the contact threshold (official 0.1).
 
-    def __init__(self, bend: np.ndarray, window: int = 90) -> None:
+    Each frame's metric sums are kept as one small vector, so the rolling window is a sum of `window`
+    vectors, not a recomputation over its frames: cheap enough to ask for on every displayed frame."""
+
+    def __init__(self, bend: np.ndarray, window: int = 90, threshold: float = CONTACT_THRESHOLD) -> None:
         self.bend = bend
         self.window = window
-        self._total = MetricAccumulator(bend)
-        self._recent: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=window)
-        self.frames = 0
+        self.threshold = threshold
+        self._keys = tuple(self._accumulator().sums)
+        self.reset()
+
+    def _accumulator(self) -> MetricAccumulator:
+        return MetricAccumulator(self.bend, self.threshold)
 
     def reset(self) -> None:
-        self._total = MetricAccumulator(self.bend)
-        self._recent.clear()
+        self._total = np.zeros(len(self._keys))
+        self._recent: deque[np.ndarray] = deque(maxlen=self.window)
         self.frames = 0
 
     def add(self, pred: np.ndarray, gt: np.ndarray) -> None:
-        self._total.add(pred[None], gt[None])
-        self._recent.append((pred, gt))
+        frame = self._accumulator()
+        frame.add(pred[None], gt[None])
+        sums = np.array([frame.sums[k] for k in self._keys], np.float64)
+        self._total += sums
+        self._recent.append(sums)
         self.frames += 1
 
+    def _result(self, sums: np.ndarray) -> dict[str, float]:
+        accumulator = self._accumulator()
+        accumulator.sums = dict(zip(self._keys, sums.tolist()))
+        return accumulator.result()
+
     def cumulative(self) -> dict[str, float]:
-        return self._total.result()
+        return self._result(self._total)
 
     def rolling(self) -> dict[str, float]:
-        accumulator = MetricAccumulator(self.bend)
-        if self._recent:
-            accumulator.add(np.stack([p for p, _ in self._recent]), np.stack([g for _, g in self._recent]))
-        return accumulator.result()
+        return self._result(np.sum(self._recent, axis=0) if self._recent else np.zeros(len(self._keys)))

@@ -105,3 +105,45 @@ def restore_torch_threads():
     threads = torch.get_num_threads()
     yield
     torch.set_num_threads(threads)
+
+
+def _free_display_number() -> int:
+    for number in range(90, 200):
+        if not Path(f"/tmp/.X11-unix/X{number}").exists() and not Path(f"/tmp/.X{number}-lock").exists():
+            return number
+    raise RuntimeError("no free X display number")
+
+
+@pytest.fixture(scope="session")
+def x_display():
+    """An X display for the dashboard: $DISPLAY when it is reachable, else an Xvfb started here (1920×1080)."""
+    import os
+    import shutil
+    import subprocess
+    import time
+
+    from viz.display import display_problem
+
+    if os.environ.get("DISPLAY") and display_problem() is None:
+        yield os.environ["DISPLAY"]
+        return
+    if shutil.which("Xvfb") is None:
+        pytest.skip("Xvfb is not installed (apt-get install xvfb xauth)")
+    display = f":{_free_display_number()}"
+    server = subprocess.Popen(["Xvfb", display, "-screen", "0", "1920x1080x24", "-nolisten", "tcp"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 15
+        while display_problem(display) is not None:
+            assert server.poll() is None and time.monotonic() < deadline, f"Xvfb {display} did not start"
+            time.sleep(0.05)
+        yield display
+    finally:
+        server.terminate()
+        server.wait(5)
+
+
+@pytest.fixture
+def dashboard_display(x_display, monkeypatch):
+    monkeypatch.setenv("DISPLAY", x_display)
+    return x_display

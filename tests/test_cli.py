@@ -76,18 +76,21 @@ def test_bad_options_give_one_clear_line(episode_dir, tmp_path, capsys, argv, me
 
 
 def test_demo_replays_an_episode_into_a_video(episode_dir, tmp_path, capsys):
-    assert main(["demo", str(episode_dir), "--out", str(tmp_path / "demo.mp4")]) == 0
+    assert main(["demo", str(episode_dir), "--headless", "--out", str(tmp_path / "demo.mp4")]) == 0
     out = capsys.readouterr().out
     assert "frames    40 written, 40 with a prediction" in out and "engine    " in out
     with VideoReader(tmp_path / "demo.mp4") as video:
         assert video.num_frames == 40
 
 
-def test_demo_replays_the_bundled_sample(tmp_path, capsys):
+def test_demo_without_a_display_falls_back_to_the_video(tmp_path, capsys, monkeypatch):
+    """No X display: the bundled sample through the bundled model into a video, saying why and where."""
     from app.demo_command import sample_episodes
 
+    monkeypatch.delenv("DISPLAY", raising=False)
     assert len(sample_episodes()) == 3
     assert main(["demo", "--out", str(tmp_path / "demo.mp4")]) == 0
     out = capsys.readouterr().out
+    assert "no dashboard: no X display: DISPLAY is not set" in out and f"video     {tmp_path / 'demo.mp4'}" in out
     assert "frames    300 written, 300 with a prediction" in out and "problems  none" in out
     assert "volumetric_iou 0." in out

@@ -42,7 +42,7 @@ def test_eval_writes_the_table_per_view_and_scene(sim_hdf5_root, tiny_checkpoint
     videos = sorted((tmp_path / "out").glob("*.mp4"))
     assert len(videos) == 2 * len(split[name])
     with VideoReader(videos[0]) as reader:
-        assert (reader.width, reader.height, reader.num_frames) == (1440, 630, 60)
+        assert (reader.width, reader.height, reader.num_frames) == (1440, 656, 60)
         assert reader.read(30).std() > 10
 
 

@@ -79,6 +79,43 @@ def test_seek_from_another_thread(episode_dir):
         assert 30 in seen and seen[-1] == 39 and len(seen) < 40
 
 
+def test_player_controls_pause_step_speed_and_hold_at_end(episode_dir):
+    """Transport controls from another thread: a paused player releases nothing until a step (exactly one
+    frame per step), resumes on schedule at a new speed, holds at the end and restarts on play."""
+    with open_episode(episode_dir) as ep:
+        source = ReplaySource(ep, ReplayConfig(speed=1.0, hold_at_end=True))
+        seen: list[int] = []
+        player = threading.Thread(target=lambda: seen.extend(s.frame_index for s in source))
+        source.pause()
+        player.start()
+        time.sleep(0.3)
+        assert seen == []
+        for _ in range(3):
+            source.step()
+        deadline = time.monotonic() + 5
+        while len(seen) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(0.2)
+        assert seen == [0, 1, 2]
+        source.set_speed(8.0)
+        started = time.monotonic()
+        source.resume()
+        while len(seen) < 40 and time.monotonic() < deadline + 5:
+            time.sleep(0.01)
+        assert seen == list(range(40)) and time.monotonic() - started < 1.0  # 37 frames at 8× ≈ 0.15 s
+        time.sleep(0.2)
+        assert source.paused and player.is_alive() and len(seen) == 40
+        source.resume()
+        while len(seen) < 45 and time.monotonic() < deadline + 10:
+            time.sleep(0.01)
+        assert seen[40:45] == [0, 1, 2, 3, 4]
+        source.close()
+        player.join(5)
+        assert not player.is_alive()
+        with pytest.raises(UserError, match="speed"):
+            source.set_speed(0.0)
+
+
 def test_replay_from_hdf5_equals_replay_from_raw(episode_dir, tmp_path):
     convert_trajectory(episode_dir, tmp_path / "e.hdf5")
     with open_episode(episode_dir) as raw, open_episode(tmp_path / "e.hdf5") as h5:

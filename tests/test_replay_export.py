@@ -8,6 +8,7 @@ from devices.episode_loader import open_episode
 from devices.tactile_layout import TactileLayout
 from devices.video_io import VideoReader
 from inference.running_metrics import RunningMetrics
+from viz.pressure_panel import BACKGROUND
 
 
 def test_replay_exports_a_playable_video_with_metrics(episode_dir, tmp_path, capsys, monkeypatch):
@@ -20,7 +21,9 @@ def test_replay_exports_a_playable_video_with_metrics(episode_dir, tmp_path, cap
     with VideoReader(out) as video:
         assert video.num_frames == 40
         frame = video.read(39)
-    assert frame.shape == (630, 1440, 3) and frame[:270].std() > 5  # the camera row is not blank
+    assert frame.shape == (806, 1440, 3) and frame[:270].std() > 5  # the camera row is not blank
+    strip = frame[630:780].astype(int)
+    assert (np.abs(strip - BACKGROUND).sum(axis=-1) > 20).mean() > 0.3  # plot axes, lines and contact lamps
 
 
 def test_an_episode_without_ground_truth_shows_the_prediction_only(episode_dir, tmp_path, capsys):
@@ -28,7 +31,7 @@ def test_an_episode_without_ground_truth_shows_the_prediction_only(episode_dir, 
     (episode_dir / "jq_pressure.json").unlink()
     with open_episode(episode_dir) as episode:
         assert episode.pressure is None
-    assert main(["replay", str(episode_dir), "--out", str(tmp_path / "r.mp4")]) == 0
+    assert main(["replay", str(episode_dir), "--headless", "--out", str(tmp_path / "r.mp4")]) == 0
     printed = capsys.readouterr().out
     assert "metrics   n/a" in printed and "40 with a prediction" in printed
 
@@ -57,3 +60,22 @@ def test_running_metrics_roll_and_accumulate():
     assert abs(metrics.cumulative()["volumetric_iou"] - 0.4) < 1e-9
     metrics.reset()
     assert metrics.frames == 0
+
+
+def test_running_metrics_equal_the_batch_metrics_of_their_frames():
+    """The per-frame sum vectors give exactly the official metrics of the window / of every frame."""
+    from inference.metrics import compute_tactile_metrics
+
+    layout = TactileLayout.default()
+    rng = np.random.default_rng(3)
+    mask = np.where(layout.valid, 1.0, np.nan)
+    preds = rng.uniform(0, 0.4, (50, 2, 21, 21)) * mask
+    gts = rng.uniform(0, 0.4, (50, 2, 21, 21)) * mask
+    gts[10:20] = np.nan  # frames without ground truth are not judged
+    metrics = RunningMetrics(layout.bend, window=7, threshold=0.2)
+    for p, g in zip(preds, gts):
+        metrics.add(p, g)
+    for got, frames in ((metrics.rolling(), slice(43, 50)), (metrics.cumulative(), slice(0, 50))):
+        want = compute_tactile_metrics(preds[frames], gts[frames], layout.bend, threshold=0.2)
+        for key, value in want.items():
+            assert np.isclose(got[key], value, rtol=1e-12, equal_nan=True), key

@@ -1,4 +1,5 @@
-"""Comparison frames (cameras on top; ground truth, prediction and error below) and the video writer."""
+"""Comparison frames (cameras on top; ground truth, prediction and error in the middle; metric and
+latency plots and the contact lamps at the bottom) and the video writer."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,15 +10,18 @@ import numpy as np
 from devices.video_io import VideoWriter
 from viz.pressure_panel import BACKGROUND, pressure_panel, put_text
 
-WIDTH, CAMERA_HEIGHT, PANEL_HEIGHT = 1440, 270, 360
+WIDTH, CAMERA_HEIGHT, PANEL_HEIGHT, STRIP_HEIGHT, FOOTER_HEIGHT = 1440, 270, 360, 150, 26
 VIEW_LABELS = {"ego": "Head", "wrist_left": "Left Wrist", "wrist_right": "Right Wrist"}
 
 
-def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred: np.ndarray | None, footer: str) -> np.ndarray:
-    """(630, 1440, 3) uint8: the three views (480×270 each), then GT | prediction | error panels.
+def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred: np.ndarray | None, footer: str,
+                     strip: np.ndarray | None = None) -> np.ndarray:
+    """(806, 1440, 3) uint8: the three views (480×270 each), GT | prediction | error panels, `strip`
+    (150, 1440, 3) and the footer line; without a strip (656, 1440, 3).
 
     Absent views, ground truth or prediction leave labelled placeholders."""
-    frame = np.empty((CAMERA_HEIGHT + PANEL_HEIGHT, WIDTH, 3), np.uint8)
+    strip_height = 0 if strip is None else STRIP_HEIGHT
+    frame = np.empty((CAMERA_HEIGHT + PANEL_HEIGHT + strip_height + FOOTER_HEIGHT, WIDTH, 3), np.uint8)
     frame[:] = BACKGROUND
     for k, (view, label) in enumerate(VIEW_LABELS.items()):
         x = k * 480
@@ -32,8 +36,11 @@ def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred:
         if grids is None:
             put_text(frame, f"{title}: n/a", (x + 10, CAMERA_HEIGHT + 30), 0.6)
             continue
-        frame[CAMERA_HEIGHT:, x:x + 480] = pressure_panel(grids, title, 480, PANEL_HEIGHT, error=error)
-    put_text(frame, footer, (10, frame.shape[0] - 10), 0.5)
+        frame[CAMERA_HEIGHT:CAMERA_HEIGHT + PANEL_HEIGHT, x:x + 480] = pressure_panel(grids, title, 480, PANEL_HEIGHT,
+                                                                                     error=error)
+    if strip is not None:
+        frame[CAMERA_HEIGHT + PANEL_HEIGHT:CAMERA_HEIGHT + PANEL_HEIGHT + STRIP_HEIGHT] = strip
+    put_text(frame, footer, (10, frame.shape[0] - 8), 0.5)
     return frame
 
 

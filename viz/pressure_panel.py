@@ -2,6 +2,8 @@
 background, nearest-neighbour upscaling, titles and a colour bar — as pure numpy/OpenCV images."""
 from __future__ import annotations
 
+import functools
+
 import cv2
 import numpy as np
 
@@ -19,6 +21,19 @@ def hand_map(grid: np.ndarray, cell: int, error: bool = False) -> np.ndarray:
     return np.repeat(np.repeat(colours, cell, axis=0), cell, axis=1)
 
 
+def draw_contact_outline(image: np.ndarray, grid: np.ndarray, cell: int, threshold: float,
+                         colour: tuple[int, int, int] = (255, 255, 255)) -> None:
+    """Outline, in place on an upscaled (21·cell)² hand map, the cells of `grid` (21, 21) strictly above
+    `threshold` (NaN cells are outside), along cell borders."""
+    region = np.nan_to_num(np.asarray(grid, np.float64), nan=0.0) > threshold
+    if not region.any():
+        return
+    mask = np.repeat(np.repeat(region.astype(np.uint8), cell, axis=0), cell, axis=1)
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    cv2.drawContours(image, contours, -1, (0, 0, 0), 3)
+    cv2.drawContours(image, contours, -1, colour, 1)
+
+
 def put_text(image: np.ndarray, text: str, origin: tuple[int, int], scale: float = 0.5,
              colour: tuple[int, int, int] = (255, 255, 255)) -> None:
     """White text with a black outline (readable on any background)."""
@@ -33,21 +48,39 @@ def colour_bar(height: int, width: int = 14, error: bool = False) -> np.ndarray:
 
 
 def pressure_panel(grids: np.ndarray, title: str, width: int, height: int, error: bool = False,
-                   labels: tuple[str, str] = ("Left Hand", "Right Hand")) -> np.ndarray:
-    """(2, 21, 21) → (height, width, 3) panel: title, both hands side by side, a colour bar."""
-    panel = np.empty((height, width, 3), np.uint8)
-    panel[:] = BACKGROUND
-    put_text(panel, title, (10, 22), 0.6)
-    cell = max(1, min((width - 60) // 2 // 21, (height - 60) // 21))
-    size = 21 * cell
-    top = 40
+                   labels: tuple[str, str] = ("Left Hand", "Right Hand"), outline: np.ndarray | None = None,
+                   threshold: float = 0.1) -> np.ndarray:
+    """(2, 21, 21) → (height, width, 3) panel: title, both hands side by side, a colour bar. `outline`
+    (2, 21, 21), e.g. the measured pressure, draws its contact region (> threshold) as a contour."""
+    panel = _panel_frame(title, width, height, error, labels).copy()
+    cell, top, size = _geometry(width, height)
     for h in range(2):
         left = 10 + h * (size + 10)
         panel[top:top + size, left:left + size] = hand_map(grids[h], cell, error)
-        put_text(panel, labels[h], (left, top + size + 16), 0.45)
+        if outline is not None:
+            draw_contact_outline(panel[top:top + size, left:left + size], outline[h], cell, threshold)
+    return panel
+
+
+def _geometry(width: int, height: int) -> tuple[int, int, int]:
+    """Cell size in pixels, top of the maps, map side length."""
+    cell = max(1, min((width - 60) // 2 // 21, (height - 60) // 21))
+    return cell, 40, 21 * cell
+
+
+@functools.lru_cache(maxsize=64)
+def _panel_frame(title: str, width: int, height: int, error: bool, labels: tuple[str, str]) -> np.ndarray:
+    """Everything but the maps (drawn once per title and size: text rendering is the slow part)."""
+    panel = np.empty((height, width, 3), np.uint8)
+    panel[:] = BACKGROUND
+    put_text(panel, title, (10, 22), 0.6)
+    _, top, size = _geometry(width, height)
+    for h in range(2):
+        put_text(panel, labels[h], (10 + h * (size + 10), top + size + 16), 0.45)
     bar_left = 10 + 2 * (size + 10)
     if bar_left + 14 <= width:
         panel[top:top + size, bar_left:bar_left + 14] = colour_bar(size, error=error)
         put_text(panel, "+1" if error else "1", (bar_left, top - 4), 0.35)
         put_text(panel, "-1" if error else "0", (bar_left, top + size + 12), 0.35)
+    panel.flags.writeable = False
     return panel

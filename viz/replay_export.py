@@ -17,8 +17,13 @@ from inference.metrics import ground_truth_for_metrics
 from inference.prediction import Prediction
 from inference.running_metrics import RunningMetrics
 from inference.streaming_engine import StreamingEngine
-from viz.comparison_video import comparison_frame, write_comparison_video
+from viz.comparison_video import STRIP_HEIGHT, comparison_frame, write_comparison_video
+from viz.contact import contact_badges, hand_contact
 from viz.hand_projection import draw_hands
+from viz.line_plot import line_plot
+
+PLOT_FRAMES = 300
+LATENCY_PLOT_MS = 200.0
 
 
 @dataclass
@@ -61,13 +66,41 @@ def _footer(snapshot_index: int, total: int, prediction: Prediction | None, metr
     return "  |  ".join(parts)
 
 
+class _History:
+    """The recent per-frame series drawn in the bottom strip."""
+
+    def __init__(self) -> None:
+        self.viou: list[float] = []
+        self.ciou: list[float] = []
+        self.step_ms: list[float] = []
+
+    def add(self, metrics: RunningMetrics | None, prediction: Prediction | None) -> None:
+        rolling = metrics.rolling() if metrics is not None else None
+        self.viou.append(rolling["volumetric_iou"] if rolling else math.nan)
+        self.ciou.append(rolling["contact_iou"] if rolling else math.nan)
+        self.step_ms.append(prediction.timings_ms.get("total", math.nan) if prediction is not None else math.nan)
+        for series in (self.viou, self.ciou, self.step_ms):
+            del series[:-PLOT_FRAMES]
+
+    def strip(self, pred: np.ndarray | None, truth: np.ndarray | None, bend: np.ndarray) -> np.ndarray:
+        """(150, 1440, 3): rolling metrics | engine time per frame | contact lamps."""
+        title = "metrics, rolling 3 s" if truth is not None else "metrics: n/a (no ground truth)"
+        return np.concatenate([
+            line_plot({"V-IoU": self.viou, "C-IoU": self.ciou}, 480, STRIP_HEIGHT, 1.0, title, PLOT_FRAMES),
+            line_plot({"engine": self.step_ms}, 480, STRIP_HEIGHT, LATENCY_PLOT_MS, "engine time per frame",
+                      PLOT_FRAMES, " ms"),
+            contact_badges(hand_contact(pred, bend), hand_contact(truth, bend), 480, STRIP_HEIGHT)], axis=1)
+
+
 def replay_frames(episode: Episode, engine: StreamingEngine, views: tuple[str, ...], summary: ReplaySummary,
                   progress: Callable[[int], None] = lambda frame: None):
     """Yield comparison frames for every frame of the episode (replay mode: every frame is processed)."""
     gt = None
     if episode.pressure is not None:
         gt = ground_truth_for_metrics(episode.pressure.grids, bool(episode.pressure.attrs.get("normalized", False)))
-    metrics = RunningMetrics(TactileLayout.default().bend) if gt is not None else None
+    bend = TactileLayout.default().bend
+    metrics = RunningMetrics(bend) if gt is not None else None
+    history = _History()
     engine.reset()
     latest: Prediction | None = None
     for snapshot in ReplaySource(episode, ReplayConfig(speed=None, views=views)):
@@ -84,10 +117,12 @@ def replay_frames(episode: Episode, engine: StreamingEngine, views: tuple[str, .
                 metrics.add(shown, truth)
         summary.frames += 1
         progress(snapshot.frame_index)
+        history.add(metrics, latest)
         images = dict(snapshot.images)
         if "ego" in images:
             images["ego"] = draw_hands(images["ego"], snapshot.joints, snapshot.joints_valid, shown)
-        yield comparison_frame(images, truth, shown, _footer(snapshot.frame_index, episode.num_frames, latest, metrics))
+        yield comparison_frame(images, truth, shown, _footer(snapshot.frame_index, episode.num_frames, latest, metrics),
+                               history.strip(shown, truth, bend))
     summary.metrics = metrics.cumulative() if metrics is not None else None
 
 

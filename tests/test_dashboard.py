@@ -1,0 +1,172 @@
+"""The dearpygui dashboard on a real X server (Xvfb): the bundled sample through the bundled model, its
+frame rate, a screenshot read back from the frame buffer, bounded display lag, the controls, and what it
+does with bad input. Each dashboard runs in a fresh process, as it does for a user (one per process)."""
+from __future__ import annotations
+
+import multiprocessing
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from app.cli import main
+from app.demo_command import sample_episodes
+from app.engine_choice import MODELS_DIR, ModelChoice, build_engine, default_checkpoint
+from app.replay_command import replay_in_dashboard
+from app.replay_session import ReplaySession
+from devices.episode_loader import open_episode
+from devices.snapshot import VIEW_NAMES
+from viz.dashboard import Dashboard
+from viz.pressure_panel import AXES, BACKGROUND
+
+NANO = ModelChoice(default_checkpoint())
+
+
+def in_fresh_process(function, *args):
+    """function(*args) in a new interpreter (spawn); its result or its exception comes back."""
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        return pool.apply_async(function, args).get(timeout=600)
+
+
+def crop(image: np.ndarray, rect: tuple[int, int, int, int]) -> np.ndarray:
+    x, y, w, h = rect
+    return image[y:y + h, x:x + w]
+
+
+def warm_pixels(panel: np.ndarray) -> float:
+    """Share of pixels coloured above the bottom of the pressure scale (blue = 0; background and axes are
+    dark): cyan, green, yellow, red."""
+    return float(((panel[..., 1] > 120) | (panel[..., 0] > 120)).mean())
+
+
+def third_means(values: list[float]) -> tuple[float, float]:
+    third = len(values) // 3
+    return float(np.mean(values[:third])), float(np.mean(values[-third:]))
+
+
+def summary(dashboard: Dashboard) -> dict:
+    state = dashboard.session.state()
+    prediction = state.prediction
+    return {"fps": dashboard.stats.fps, "frames": dashboard.stats.frames, "rects": dashboard.panel_rects,
+            "camera_lag_ms": dashboard.stats.camera_lag_ms, "prediction_lag_ms": dashboard.stats.prediction_lag_ms,
+            "shown_pressure": getattr(dashboard.shown.get("prediction"), "pressure", None),
+            "cumulative": state.cumulative, "rolling": state.rolling, "truth": state.truth, "message": state.message,
+            "model": state.model, "pressure": None if prediction is None else prediction.pressure,
+            "snapshot": state.snapshot is not None, "metric_frames": state.metric_frames}
+
+
+def replay_sample(shot: Path) -> dict:
+    return summary(replay_in_dashboard(sample_episodes()[0], NANO, VIEW_NAMES, max_frames=240, screenshot=shot))
+
+
+def test_the_dashboard_replays_the_sample_with_bounded_lag(dashboard_display, tmp_path):
+    shot = tmp_path / "dashboard.png"
+    result = in_fresh_process(replay_sample, shot)
+    camera_lag, prediction_lag = result["camera_lag_ms"], result["prediction_lag_ms"]
+    print(f"dashboard: {result['fps']:.1f} fps over {result['frames']} frames; camera lag p50 "
+          f"{np.median(camera_lag):.0f} ms, prediction lag p50 {np.median(prediction_lag):.0f} ms")
+    assert result["frames"] >= 240 and result["fps"] > 5
+    for lags in (camera_lag, prediction_lag):
+        assert len(lags) > 30
+        first, last = third_means(lags)
+        assert last < 1.5 * first + 100, (first, last)  # no growth from start to end
+        assert max(lags) < 1500
+
+    image = cv2.imread(str(shot))[..., ::-1]
+    rects = result["rects"]
+    assert image.shape[:2] == (720, 1280)
+    for view in VIEW_NAMES:
+        assert crop(image, rects[view]).std() > 15, f"the {view} camera panel is blank"
+    predicted = crop(image, rects["predicted"]).astype(int)
+    hand_cells = ~np.all(np.abs(predicted - BACKGROUND) < 8, axis=-1) & ~np.all(np.abs(predicted - AXES) < 8, axis=-1)
+    assert hand_cells.mean() > 0.2, "the predicted map is not drawn"
+    assert (warm_pixels(predicted) > 0.002) == (np.nanmax(result["shown_pressure"]) > 0.45)
+    assert crop(image, rects["error"]).std() > 10 and crop(image, rects["measured"]).std() > 10
+    assert result["cumulative"] is not None and 0 <= result["cumulative"]["volumetric_iou"] <= 1
+
+
+def wait_for(condition, what: str, seconds: float = 60) -> None:
+    deadline = time.monotonic() + seconds
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+
+def drive_controls(session: ReplaySession, dashboard: Dashboard, errors: list[str]) -> None:
+    try:
+        wait_for(lambda: session.state().prediction is not None, "a first prediction")
+        session.pause()
+        time.sleep(0.3)
+        before = session.state().playback.position
+        time.sleep(0.5)
+        assert session.state().playback.position == before, "playback moved while paused"
+        for _ in range(3):
+            session.step()
+        wait_for(lambda: session.state().playback.position == before + 3, "three single steps")
+        session.seek(200)
+        session.set_views(("ego",))
+        session.set_threshold(0.2)
+        session.set_model("tiny", "torch fp32")
+        session.play()
+        wait_for(lambda: "running tiny" in session.state().message, "the tiny model")
+        wait_for(lambda: (p := session.state().prediction) is not None and p.views_used == ("ego",)
+                 and p.frame_index > 200, "an ego-only prediction after the seek")
+        state = session.state()
+        assert state.cumulative is not None and state.metric_frames < 100, state.metric_frames
+        assert state.model == "tiny (torch fp32)", state.model
+    except AssertionError as exc:
+        errors.append(str(exc))
+    finally:
+        dashboard.close()
+
+
+def controls_run() -> dict:
+    errors: list[str] = []
+    with open_episode(sample_episodes()[0]) as episode:
+        session = ReplaySession(episode, build_engine(NANO, VIEW_NAMES), NANO).start()
+        dashboard = Dashboard(session)
+        thread = threading.Thread(target=drive_controls, args=(session, dashboard, errors), daemon=True)
+        thread.start()
+        stats = dashboard.run()
+        thread.join(5)
+    return {"errors": errors, "threshold": session.threshold, "views": session.views, "frames": stats.frames}
+
+
+def test_the_controls_pause_step_seek_switch_views_threshold_and_model(dashboard_display):
+    """Controls driven from another thread while the dashboard renders take effect without stalling it."""
+    result = in_fresh_process(controls_run)
+    assert not result["errors"], result["errors"]
+    assert result["threshold"] == 0.2 and result["views"] == ("ego",) and result["frames"] > 10
+
+
+def replay_episode(path: Path, choice: ModelChoice, frames: int, shot: Path | None) -> dict:
+    return summary(replay_in_dashboard(path, choice, VIEW_NAMES, max_frames=frames, screenshot=shot))
+
+
+def test_an_episode_without_ground_truth_shows_prediction_only(dashboard_display, episode_dir, tmp_path):
+    (episode_dir / "pressure_grids.npz").unlink()
+    (episode_dir / "jq_pressure.json").unlink()
+    result = in_fresh_process(replay_episode, episode_dir, NANO, 60, tmp_path / "s.png")
+    assert result["rolling"] is None and result["cumulative"] is None and result["truth"] is None
+    assert result["pressure"] is not None
+    image = cv2.imread(str(tmp_path / "s.png"))[..., ::-1]
+    assert warm_pixels(crop(image, result["rects"]["measured"])) < 0.01  # "n/a", no map
+
+
+def test_a_checkpoint_for_another_preset_keeps_the_dashboard_running(dashboard_display):
+    wrong = ModelChoice(MODELS_DIR / "tiny" / "best_model.pth", MODELS_DIR / "nano" / "config.yaml")
+    result = in_fresh_process(replay_episode, sample_episodes()[0], wrong, 60, None)
+    assert result["message"].startswith("no prediction:") and "best_model.pth" in result["message"]
+    assert result["frames"] >= 60 and result["pressure"] is None and result["snapshot"]
+    assert result["truth"] is None and result["model"] == "no model"
+
+
+def test_no_display_is_one_clear_line(monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    assert main(["replay", str(sample_episodes()[0])]) == 2
+    err = capsys.readouterr().err
+    assert "cannot open the dashboard: no X display: DISPLAY is not set; use --headless" in err
+    assert "Traceback" not in err

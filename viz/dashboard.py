@@ -1,0 +1,209 @@
+"""The dearpygui dashboard: cameras with hand overlays, measured / predicted / error pressure maps,
+contact lamps, running metrics, latency per stage, device status, and the session's controls.
+
+The render loop runs on the calling thread and never waits for devices or the engine: each frame it
+reads the session's latest state and re-uploads a texture only when its content changed (cameras on a new
+snapshot, maps on a new prediction, plots at most 10 times a second). Callbacks run on the same thread
+(manual callback management), between frames.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import dearpygui.dearpygui as dpg
+import numpy as np
+
+from devices.errors import UserError
+from devices.snapshot import VIEW_NAMES
+from devices.tactile_layout import TactileLayout
+from viz.dashboard_controls import build_controls, build_tables, update_tables
+from viz.dashboard_panels import camera_panel, contact_panel, plots_panel, pressure_panels
+from viz.dashboard_state import DashboardSession, SessionState
+from viz.display import display_problem
+from viz.textures import TextureSlot
+
+CAMERA = (256, 192)
+PANEL = (384, 224)
+CONTACT = (460, 84)
+PLOT_PERIOD_S = 0.1
+
+
+@dataclass(frozen=True)
+class DashboardConfig:
+    width: int = 1280
+    height: int = 720
+    title: str = "TouchAnything Live"
+    screenshot_dir: Path = Path("recordings") / "screenshots"
+
+
+@dataclass
+class DashboardStats:
+    """frames rendered over `seconds`; camera_lag_ms / prediction_lag_ms: now − capture time when a new
+    camera frame / prediction reached the screen."""
+
+    frames: int = 0
+    seconds: float = 0.0
+    camera_lag_ms: list[float] = field(default_factory=list)
+    prediction_lag_ms: list[float] = field(default_factory=list)
+
+    @property
+    def fps(self) -> float:
+        return self.frames / self.seconds if self.seconds > 0 else 0.0
+
+
+class Dashboard:
+    """`run()` opens the window and returns when it is closed (or after `max_frames`)."""
+
+    def __init__(self, session: DashboardSession, config: DashboardConfig = DashboardConfig()) -> None:
+        self.session = session
+        self.config = config
+        self.stats = DashboardStats()
+        self.bend = TactileLayout.default().bend
+        self.outline = False
+        self.pending_screenshot: Path | None = None
+        self.saved_screenshots: list[Path] = []
+        self.note = ""
+        self._closing = False
+        self.panel_rects: dict[str, tuple[int, int, int, int]] = {}
+        """Where each image panel is on screen: name → (x, y, width, height) in viewport pixels."""
+        self._shown: dict[str, object] = {}
+        self._plot_due = 0.0
+
+    def run(self, max_frames: int | None = None, screenshot: Path | None = None) -> DashboardStats:
+        """Render until the window closes or `max_frames` frames; with `screenshot`, save the last frame
+        there as PNG first. Raises UserError when no X display is reachable (checked before dearpygui
+        starts: it would abort the process). The session is closed before the GUI is torn down (its
+        threads must not run while dearpygui destroys its context). One dashboard per process: dearpygui
+        2.x does not survive a second context next to running decoder threads."""
+        problem = display_problem()
+        if problem:
+            self.session.close()
+            raise UserError(f"cannot open the dashboard: {problem}")
+        dpg.create_context()
+        try:
+            dpg.configure_app(manual_callback_management=True)
+            self._build()
+            dpg.create_viewport(title=self.config.title, width=self.config.width, height=self.config.height,
+                                x_pos=0, y_pos=0)
+            dpg.setup_dearpygui()
+            dpg.show_viewport()
+            dpg.set_primary_window("main", True)
+            self._loop(max_frames, screenshot)
+        finally:
+            self.session.close()
+            dpg.destroy_context()
+        return self.stats
+
+    def _build(self) -> None:
+        with dpg.texture_registry() as registry:
+            self.cameras = {view: TextureSlot(registry, *CAMERA) for view in VIEW_NAMES}
+            self.maps = {name: TextureSlot(registry, *PANEL) for name in ("measured", "predicted", "error", "plots")}
+            self.contact = TextureSlot(registry, *CONTACT)
+        with dpg.window(tag="main"):
+            with dpg.group(horizontal=True):
+                with dpg.group():
+                    with dpg.group(horizontal=True):
+                        for view in VIEW_NAMES:
+                            dpg.add_image(self.cameras[view].tag, tag=f"image_{view}")
+                    for row in (("measured", "predicted"), ("error", "plots")):
+                        with dpg.group(horizontal=True):
+                            for name in row:
+                                dpg.add_image(self.maps[name].tag, tag=f"image_{name}")
+                with dpg.group():
+                    build_controls(self)
+                    dpg.add_image(self.contact.tag, tag="image_contact")
+                    build_tables()
+
+    def _loop(self, max_frames: int | None, screenshot: Path | None) -> None:
+        start = time.perf_counter()
+        while dpg.is_dearpygui_running() and not self._closing:
+            dpg.run_callbacks(dpg.get_callback_queue())
+            self._update(self.session.state())
+            dpg.render_dearpygui_frame()
+            if not self.panel_rects:
+                self._find_panels()
+            self.stats.frames += 1
+            self.stats.seconds = time.perf_counter() - start
+            if max_frames is not None and self.stats.frames >= max_frames:
+                if screenshot is None or screenshot in self.saved_screenshots:
+                    break
+                if self.pending_screenshot is None:
+                    self.request_screenshot(screenshot)
+
+    def close(self) -> None:
+        """Ask the render loop to end after the current frame (callable from any thread)."""
+        self._closing = True
+
+    @property
+    def shown(self) -> dict[str, object]:
+        """What is on screen now: the snapshot and prediction records last uploaded."""
+        return dict(self._shown)
+
+    def _find_panels(self) -> None:
+        """Record the panels' screen rectangles once dearpygui has laid them out."""
+        rects = {}
+        for name in (*VIEW_NAMES, "measured", "predicted", "error", "plots", "contact"):
+            (x, y), (w, h) = dpg.get_item_rect_min(f"image_{name}"), dpg.get_item_rect_size(f"image_{name}")
+            rects[name] = (int(x), int(y), int(w), int(h))
+        if all(w > 0 and h > 0 for _, _, w, h in rects.values()):
+            self.panel_rects = rects
+
+    def _changed(self, key: str, value: object) -> bool:
+        """Whether `value` differs from what is on screen under `key` (identity for records, equality for
+        settings tuples), remembering it."""
+        shown = self._shown.get(key, ...)
+        if shown is value or (isinstance(value, tuple) and shown == value):
+            return False
+        self._shown[key] = value
+        return True
+
+    def _update(self, state: SessionState) -> None:
+        now_us = time.monotonic_ns() / 1000
+        views = self.session.views
+        prediction = state.prediction
+        pressure = None if prediction is None else prediction.pressure
+        if self._changed("snapshot", state.snapshot) | self._changed("views", views):
+            for view in VIEW_NAMES:
+                self.cameras[view].show(camera_panel(state.snapshot, view, view in views, *CAMERA, pressure))
+            if state.snapshot is not None:
+                self.stats.camera_lag_ms.append((now_us - state.snapshot.t_us) / 1e3)
+        settings = (self.session.threshold, self.outline, state.truth is None)
+        new_prediction = self._changed("prediction", prediction)
+        if new_prediction | self._changed("settings", settings):
+            for name, image in zip(("measured", "predicted", "error"),
+                                   pressure_panels(state, *PANEL, self.session.threshold, self.outline)):
+                self.maps[name].show(image)
+            self.contact.show(contact_panel(state, self.bend, self.session.threshold, *CONTACT))
+        if new_prediction and prediction is not None:
+            self.stats.prediction_lag_ms.append((now_us - prediction.t_us) / 1e3)
+        if time.perf_counter() >= self._plot_due:
+            self._plot_due = time.perf_counter() + PLOT_PERIOD_S
+            self.maps["plots"].show(plots_panel(state, *PANEL, capacity=300))
+        update_tables(self, state)
+
+    def request_screenshot(self, path: Path | None = None) -> None:
+        """Save the next rendered frame as PNG (default: a timestamped file under the screenshot folder)."""
+        if path is None:
+            path = self.config.screenshot_dir / time.strftime("dashboard_%Y%m%d_%H%M%S.png")
+        self.pending_screenshot = Path(path)
+        dpg.output_frame_buffer(callback=self._save_screenshot)
+
+    def _save_screenshot(self, sender: object, buffer: object) -> None:
+        path, self.pending_screenshot = self.pending_screenshot, None
+        width, height = dpg.get_viewport_client_width(), dpg.get_viewport_client_height()
+        rgba = np.frombuffer(buffer, np.float32)
+        pixels = rgba.size // 4
+        height = pixels // width if width and pixels % width == 0 else height
+        image = (np.clip(rgba.reshape(height, -1, 4)[..., :3], 0, 1) * 255).round().astype(np.uint8)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if not cv2.imwrite(str(path), image[..., ::-1]):
+                raise OSError("the image could not be encoded")
+        except OSError as exc:
+            self.note = f"screenshot not saved: {path}: {exc}"
+            return
+        self.saved_screenshots.append(path)
+        self.note = f"screenshot saved: {path}"
