@@ -3,7 +3,7 @@ contact lamps, running metrics, latency per stage, device status, and the sessio
 
 The render loop runs on the calling thread and never waits for devices or the engine: each frame it
 reads the session's latest state and re-uploads a texture only when its content changed (cameras on a new
-snapshot, maps on a new prediction, plots at most 10 times a second). Callbacks run on the same thread
+snapshot, maps on a new prediction, plots at most 5 times a second). Callbacks run on the same thread
 (manual callback management), between frames.
 """
 from __future__ import annotations
@@ -20,15 +20,19 @@ from devices.errors import UserError
 from devices.snapshot import VIEW_NAMES
 from devices.tactile_layout import TactileLayout
 from viz.dashboard_controls import build_controls, build_tables, update_tables
-from viz.dashboard_panels import camera_panel, contact_panel, plots_panel, pressure_panels
+from viz.dashboard_panels import blank, camera_panel, contact_panel, plots_panel, pressure_views
 from viz.dashboard_state import DashboardSession, SessionState
 from viz.display import display_problem
+from viz.pressure_panel import maps_width
 from viz.textures import TextureSlot
 
 CAMERA = (256, 192)
-PANEL = (384, 224)
+CELL = 7
+MAPS = (maps_width(CELL), 21 * CELL)
 CONTACT = (460, 84)
-PLOT_PERIOD_S = 0.1
+PLOTS = (MAPS[0], MAPS[1] + 40)
+MAP_NAMES = ("measured", "predicted", "error")
+PLOT_PERIOD_S = 0.2
 
 
 @dataclass(frozen=True)
@@ -100,18 +104,25 @@ class Dashboard:
     def _build(self) -> None:
         with dpg.texture_registry() as registry:
             self.cameras = {view: TextureSlot(registry, *CAMERA) for view in VIEW_NAMES}
-            self.maps = {name: TextureSlot(registry, *PANEL) for name in ("measured", "predicted", "error", "plots")}
+            self.maps = {name: TextureSlot(registry, *MAPS) for name in MAP_NAMES}
             self.contact = TextureSlot(registry, *CONTACT)
+            self.plots = TextureSlot(registry, *PLOTS)
         with dpg.window(tag="main"):
             with dpg.group(horizontal=True):
                 with dpg.group():
                     with dpg.group(horizontal=True):
                         for view in VIEW_NAMES:
                             dpg.add_image(self.cameras[view].tag, tag=f"image_{view}")
-                    for row in (("measured", "predicted"), ("error", "plots")):
+                    for row in (("measured", "predicted"), ("error", None)):
                         with dpg.group(horizontal=True):
                             for name in row:
-                                dpg.add_image(self.maps[name].tag, tag=f"image_{name}")
+                                with dpg.group(width=MAPS[0] + 50):
+                                    if name is None:
+                                        dpg.add_image(self.plots.tag, tag="image_plots")
+                                        continue
+                                    dpg.add_text("", tag=f"title_{name}")
+                                    dpg.add_image(self.maps[name].tag, tag=f"image_{name}")
+                                    dpg.add_text("left hand" + " " * 18 + "right hand")
                 with dpg.group():
                     build_controls(self)
                     dpg.add_image(self.contact.tag, tag="image_contact")
@@ -145,7 +156,7 @@ class Dashboard:
     def _find_panels(self) -> None:
         """Record the panels' screen rectangles once dearpygui has laid them out."""
         rects = {}
-        for name in (*VIEW_NAMES, "measured", "predicted", "error", "plots", "contact"):
+        for name in (*VIEW_NAMES, *MAP_NAMES, "contact", "plots"):
             (x, y), (w, h) = dpg.get_item_rect_min(f"image_{name}"), dpg.get_item_rect_size(f"image_{name}")
             rects[name] = (int(x), int(y), int(w), int(h))
         if all(w > 0 and h > 0 for _, _, w, h in rects.values()):
@@ -173,15 +184,15 @@ class Dashboard:
         settings = (self.session.threshold, self.outline, state.truth is None)
         new_prediction = self._changed("prediction", prediction)
         if new_prediction | self._changed("settings", settings):
-            for name, image in zip(("measured", "predicted", "error"),
-                                   pressure_panels(state, *PANEL, self.session.threshold, self.outline)):
-                self.maps[name].show(image)
+            for name, (image, title) in pressure_views(state, CELL, self.session.threshold, self.outline).items():
+                self.maps[name].show(blank(*MAPS, "n/a") if image is None else image)
+                dpg.set_value(f"title_{name}", title)
             self.contact.show(contact_panel(state, self.bend, self.session.threshold, *CONTACT))
         if new_prediction and prediction is not None:
             self.stats.prediction_lag_ms.append((now_us - prediction.t_us) / 1e3)
         if time.perf_counter() >= self._plot_due:
             self._plot_due = time.perf_counter() + PLOT_PERIOD_S
-            self.maps["plots"].show(plots_panel(state, *PANEL, capacity=300))
+            self.plots.show(plots_panel(state, *PLOTS))
         update_tables(self, state)
 
     def request_screenshot(self, path: Path | None = None) -> None:

@@ -8,11 +8,9 @@ from devices.snapshot import Snapshot
 from viz.comparison_video import VIEW_LABELS
 from viz.contact import contact_badges, hand_contact
 from viz.hand_projection import draw_hands
-from viz.line_plot import line_plot
-from viz.pressure_panel import BACKGROUND, pressure_panel, put_text
+from viz.line_plot import LATENCY_PLOT_MS, PLOT_SAMPLES, line_plot
 from viz.dashboard_state import SessionState
-
-LATENCY_PLOT_MS = 200.0
+from viz.pressure_panel import BACKGROUND, pressure_maps, put_text
 
 
 def blank(width: int, height: int, text: str) -> np.ndarray:
@@ -38,37 +36,37 @@ def camera_panel(snapshot: Snapshot | None, view: str, used: bool, width: int, h
     return small
 
 
-def pressure_panels(state: SessionState, width: int, height: int, threshold: float,
-                    outline: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Measured, predicted (optionally with the measured contact region outlined) and error panels."""
+def pressure_views(state: SessionState, cell: int, threshold: float,
+                   outline: bool) -> dict[str, tuple[np.ndarray | None, str]]:
+    """name → (maps image or None when there is nothing to show, title) for the measured, predicted
+    (optionally with the measured contact region outlined) and error maps."""
     prediction = state.prediction
     pred = None if prediction is None else prediction.pressure
     truth = state.truth
-    measured = pressure_panel(truth, "Measured Pressure", width, height) if truth is not None else \
-        blank(width, height, "Measured Pressure: n/a (no glove / ground truth)")
+    measured = (pressure_maps(truth, cell), "Measured pressure") if truth is not None else \
+        (None, "Measured pressure: n/a (no glove / ground truth)")
     if pred is None:
-        reason = "waiting for the model" if prediction is None else prediction.status
-        predicted = blank(width, height, f"Predicted Pressure: {reason}")
+        predicted = (None, f"Predicted pressure: {'waiting for the model' if prediction is None else prediction.status}")
     else:
-        labels = tuple(f"{side} Hand" + ("" if ok else " (no pose)")
-                       for side, ok in zip(("Left", "Right"), prediction.hands_predicted))
-        predicted = pressure_panel(pred, "Predicted" + (" + measured contact" if outline and truth is not None else ""),
-                                   width, height, labels=labels, outline=truth if outline else None, threshold=threshold)
-    error = pressure_panel(pred - truth, "Prediction - Measured", width, height, error=True) \
-        if pred is not None and truth is not None else blank(width, height, "Error: n/a")
-    return measured, predicted, error
+        missing = [side for side, ok in zip(("left", "right"), prediction.hands_predicted) if not ok]
+        title = "Predicted pressure" + (" + measured contact" if outline and truth is not None else "")
+        title += f" ({' and '.join(missing)}: no pose)" if missing else ""
+        predicted = (pressure_maps(pred, cell, outline=truth if outline else None, threshold=threshold), title)
+    error = (pressure_maps(pred - truth, cell, error=True), "Prediction - measured") \
+        if pred is not None and truth is not None else (None, "Error: n/a")
+    return {"measured": measured, "predicted": predicted, "error": error}
 
 
-def plots_panel(state: SessionState, width: int, height: int, capacity: int) -> np.ndarray:
-    """Rolling metrics (3 s window) above engine latency."""
+def plots_panel(state: SessionState, width: int, height: int) -> np.ndarray:
+    """Rolling official metrics (3 s window) above capture-to-prediction latency, last PLOT_SAMPLES."""
     top = height // 2
     history = state.history
     panel = np.empty((height, width, 3), np.uint8)
     metrics = {"V-IoU": history.get("volumetric_iou", np.zeros(0)), "C-IoU": history.get("contact_iou", np.zeros(0))}
     title = "metrics, rolling 3 s" if state.rolling is not None else "metrics: n/a (no ground truth)"
-    panel[:top] = line_plot(metrics, width, top, 1.0, title, capacity)
+    panel[:top] = line_plot(metrics, width, top, 1.0, title, PLOT_SAMPLES)
     panel[top:] = line_plot({"latency": history.get("latency_ms", np.zeros(0))}, width, height - top,
-                            LATENCY_PLOT_MS, "capture to prediction", capacity, " ms")
+                            LATENCY_PLOT_MS, "capture to prediction", PLOT_SAMPLES, " ms")
     return panel
 
 

@@ -6,6 +6,10 @@ import numpy as np
 
 from viz.pressure_panel import AXES, BACKGROUND, put_text
 
+PLOT_SAMPLES = 300
+"""History shown by the plots: 10 s at 30 fps."""
+LATENCY_PLOT_MS = 200.0
+"""Top of the latency plots' scale."""
 SERIES_COLOURS = ((90, 200, 255), (255, 170, 90), (140, 230, 140), (230, 120, 200))
 
 
@@ -19,7 +23,7 @@ def line_plot(series: dict[str, np.ndarray], width: int, height: int, y_max: flo
     left, top, right, bottom = 34, 24, width - 6, height - 8
     image[top:bottom, left:right] = AXES
     put_text(image, title, (6, 16), 0.45)
-    put_text(image, f"{y_max:g}{unit}", (2, top + 10), 0.32)
+    put_text(image, f"{y_max:g}", (2, top + 10), 0.32)
     put_text(image, "0", (20, bottom), 0.32)
     span = max(capacity - 1, 1)
     legend_x = left + 8 + 7 * len(title)

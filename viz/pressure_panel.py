@@ -53,19 +53,40 @@ def pressure_panel(grids: np.ndarray, title: str, width: int, height: int, error
     """(2, 21, 21) → (height, width, 3) panel: title, both hands side by side, a colour bar. `outline`
     (2, 21, 21), e.g. the measured pressure, draws its contact region (> threshold) as a contour."""
     panel = _panel_frame(title, width, height, error, labels).copy()
-    cell, top, size = _geometry(width, height)
-    for h in range(2):
-        left = 10 + h * (size + 10)
-        panel[top:top + size, left:left + size] = hand_map(grids[h], cell, error)
-        if outline is not None:
-            draw_contact_outline(panel[top:top + size, left:left + size], outline[h], cell, threshold)
+    cell, top = panel_cell(width, height), 40
+    maps = pressure_maps(grids, cell, error, outline, threshold, bar=False)
+    panel[top:top + maps.shape[0], MAP_GAP:MAP_GAP + maps.shape[1]] = maps
     return panel
 
 
-def _geometry(width: int, height: int) -> tuple[int, int, int]:
-    """Cell size in pixels, top of the maps, map side length."""
-    cell = max(1, min((width - 60) // 2 // 21, (height - 60) // 21))
-    return cell, 40, 21 * cell
+MAP_GAP, BAR_WIDTH = 10, 14
+
+
+def panel_cell(width: int, height: int) -> int:
+    """The cell size (pixels) that fits both hands and the bar in a (height, width) panel."""
+    return max(1, min((width - 60) // 2 // 21, (height - 60) // 21))
+
+
+def maps_width(cell: int) -> int:
+    """Width of `pressure_maps(..., bar=True)`: two hands, the gaps and the colour bar."""
+    return 2 * 21 * cell + 2 * MAP_GAP + BAR_WIDTH
+
+
+def pressure_maps(grids: np.ndarray, cell: int, error: bool = False, outline: np.ndarray | None = None,
+                  threshold: float = 0.1, bar: bool = True) -> np.ndarray:
+    """(2, 21, 21) → (21·cell, maps_width(cell), 3): both hand maps (optionally with the contact outline
+    of `outline`) and, with `bar`, the colour bar; without text (for the dashboard's textures)."""
+    size = 21 * cell
+    image = np.empty((size, maps_width(cell) if bar else 2 * size + MAP_GAP, 3), np.uint8)
+    image[:] = BACKGROUND
+    for h in range(2):
+        left = h * (size + MAP_GAP)
+        image[:, left:left + size] = hand_map(grids[h], cell, error)
+        if outline is not None:
+            draw_contact_outline(image[:, left:left + size], outline[h], cell, threshold)
+    if bar:
+        image[:, -BAR_WIDTH:] = colour_bar(size, error=error)
+    return image
 
 
 @functools.lru_cache(maxsize=64)
@@ -74,12 +95,12 @@ def _panel_frame(title: str, width: int, height: int, error: bool, labels: tuple
     panel = np.empty((height, width, 3), np.uint8)
     panel[:] = BACKGROUND
     put_text(panel, title, (10, 22), 0.6)
-    _, top, size = _geometry(width, height)
+    top, size = 40, 21 * panel_cell(width, height)
     for h in range(2):
-        put_text(panel, labels[h], (10 + h * (size + 10), top + size + 16), 0.45)
-    bar_left = 10 + 2 * (size + 10)
-    if bar_left + 14 <= width:
-        panel[top:top + size, bar_left:bar_left + 14] = colour_bar(size, error=error)
+        put_text(panel, labels[h], (MAP_GAP + h * (size + MAP_GAP), top + size + 16), 0.45)
+    bar_left = MAP_GAP + 2 * (size + MAP_GAP)
+    if bar_left + BAR_WIDTH <= width:
+        panel[top:top + size, bar_left:bar_left + BAR_WIDTH] = colour_bar(size, error=error)
         put_text(panel, "+1" if error else "1", (bar_left, top - 4), 0.35)
         put_text(panel, "-1" if error else "0", (bar_left, top + size + 12), 0.35)
     panel.flags.writeable = False

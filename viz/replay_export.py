@@ -20,10 +20,7 @@ from inference.streaming_engine import StreamingEngine
 from viz.comparison_video import STRIP_HEIGHT, comparison_frame, write_comparison_video
 from viz.contact import contact_badges, hand_contact
 from viz.hand_projection import draw_hands
-from viz.line_plot import line_plot
-
-PLOT_FRAMES = 300
-LATENCY_PLOT_MS = 200.0
+from viz.line_plot import LATENCY_PLOT_MS, PLOT_SAMPLES, line_plot
 
 
 @dataclass
@@ -80,15 +77,15 @@ class _History:
         self.ciou.append(rolling["contact_iou"] if rolling else math.nan)
         self.step_ms.append(prediction.timings_ms.get("total", math.nan) if prediction is not None else math.nan)
         for series in (self.viou, self.ciou, self.step_ms):
-            del series[:-PLOT_FRAMES]
+            del series[:-PLOT_SAMPLES]
 
     def strip(self, pred: np.ndarray | None, truth: np.ndarray | None, bend: np.ndarray) -> np.ndarray:
         """(150, 1440, 3): rolling metrics | engine time per frame | contact lamps."""
         title = "metrics, rolling 3 s" if truth is not None else "metrics: n/a (no ground truth)"
         return np.concatenate([
-            line_plot({"V-IoU": self.viou, "C-IoU": self.ciou}, 480, STRIP_HEIGHT, 1.0, title, PLOT_FRAMES),
+            line_plot({"V-IoU": self.viou, "C-IoU": self.ciou}, 480, STRIP_HEIGHT, 1.0, title, PLOT_SAMPLES),
             line_plot({"engine": self.step_ms}, 480, STRIP_HEIGHT, LATENCY_PLOT_MS, "engine time per frame",
-                      PLOT_FRAMES, " ms"),
+                      PLOT_SAMPLES, " ms"),
             contact_badges(hand_contact(pred, bend), hand_contact(truth, bend), 480, STRIP_HEIGHT)], axis=1)
 
 

@@ -1,0 +1,98 @@
+"""Dashboard frame rate and display lag under Xvfb: the bundled sample replayed at 30 fps through the
+engine and the dashboard, one fresh process per setting (dearpygui allows one dashboard per process).
+
+    python benchmarks/dashboard_fps.py [--frames 450] [--out docs/bench]
+
+Starts its own Xvfb when no display is reachable. Writes dashboard.md and dashboard.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import os
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+
+SETTINGS = (("no model", None), ("nano torch fp32", "torch fp32"), ("nano onnx int8", "onnx int8"))
+
+
+def measure(tier: str | None, frames: int) -> dict:
+    from app.demo_command import sample_episodes
+    from app.engine_choice import ModelChoice, build_engine, default_checkpoint
+    from app.replay_session import ReplaySession
+    from devices.episode_loader import open_episode
+    from devices.snapshot import VIEW_NAMES
+    from viz.dashboard import Dashboard
+
+    choice = ModelChoice(default_checkpoint()).with_tier(tier or "torch fp32")
+    with open_episode(sample_episodes()[0]) as episode:
+        engine = build_engine(choice, VIEW_NAMES) if tier else None
+        session = ReplaySession(episode, engine, choice).start()
+        stats = Dashboard(session).run(max_frames=frames)
+        engine_fps = session.state().engine_fps
+    camera, prediction = np.array(stats.camera_lag_ms), np.array(stats.prediction_lag_ms)
+    return {"fps": stats.fps, "frames": stats.frames, "seconds": stats.seconds,
+            "camera_updates_per_s": len(camera) / stats.seconds,
+            "camera_lag_p50_ms": float(np.median(camera)), "camera_lag_p99_ms": float(np.percentile(camera, 99)),
+            "prediction_lag_p50_ms": float(np.median(prediction)) if prediction.size else None,
+            "prediction_lag_p99_ms": float(np.percentile(prediction, 99)) if prediction.size else None,
+            "engine_fps": engine_fps}
+
+
+def ensure_display() -> subprocess.Popen | None:
+    from viz.display import display_problem
+
+    if display_problem() is None:
+        return None
+    if shutil.which("Xvfb") is None:
+        raise SystemExit("no X display and no Xvfb (apt-get install xvfb xauth)")
+    os.environ["DISPLAY"] = ":97"
+    server = subprocess.Popen(["Xvfb", ":97", "-screen", "0", "1920x1080x24", "-nolisten", "tcp"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 15
+    while display_problem() is not None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return server
+
+
+def markdown(rows: dict[str, dict]) -> str:
+    lines = ["# Dashboard frame rate (Xvfb, llvmpipe, 2-core CPU)", "",
+             "The bundled sample replayed at 30 fps through the engine into the dashboard (1280×720, everything "
+             "shown); `python benchmarks/dashboard_fps.py`.", "",
+             "| setting | display fps | camera updates/s | camera lag p50 / p99 ms | prediction lag p50 / p99 ms | engine fps |",
+             "|---|---|---|---|---|---|"]
+    for name, r in rows.items():
+        pred = "-" if r["prediction_lag_p50_ms"] is None else f"{r['prediction_lag_p50_ms']:.0f} / {r['prediction_lag_p99_ms']:.0f}"
+        lines.append(f"| {name} | {r['fps']:.1f} | {r['camera_updates_per_s']:.1f} | {r['camera_lag_p50_ms']:.0f} / "
+                     f"{r['camera_lag_p99_ms']:.0f} | {pred} | {r['engine_fps']:.1f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=450)
+    parser.add_argument("--out", type=Path, default=Path("docs/bench"))
+    args = parser.parse_args()
+    server = ensure_display()
+    try:
+        rows = {}
+        for name, tier in SETTINGS:
+            with multiprocessing.get_context("spawn").Pool(1) as pool:
+                rows[name] = pool.apply(measure, (tier, args.frames))
+            print(f"{name}: {rows[name]['fps']:.1f} fps", flush=True)
+    finally:
+        if server is not None:
+            server.terminate()
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "dashboard.json").write_text(json.dumps(rows, indent=2) + "\n")
+    (args.out / "dashboard.md").write_text(markdown(rows))
+    print(markdown(rows))
+
+
+if __name__ == "__main__":
+    main()
