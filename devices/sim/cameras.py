@@ -12,6 +12,7 @@ from devices.sim.shapes import inverse, transform
 
 WIDTH, HEIGHT = 640, 480
 HEAD_HFOV_DEG = 90.0
+HEAD_FOCAL = (WIDTH / 2) / np.tan(np.radians(HEAD_HFOV_DEG / 2))
 WRIST_FOCAL = 190.0
 """Equidistant fisheye r = f·θ: θ = 90° lands 298 px from the centre."""
 WRIST_MAX_DEG = 95.0
@@ -77,8 +78,7 @@ def look_at(position: np.ndarray, target: np.ndarray, up=(0.0, 0.0, 1.0)) -> np.
 
 
 def head_camera(position: np.ndarray, target: np.ndarray) -> Camera:
-    focal = (WIDTH / 2) / np.tan(np.radians(HEAD_HFOV_DEG / 2))
-    return Camera("chest", look_at(position, target), "pinhole", focal)
+    return Camera("chest", look_at(position, target), "pinhole", HEAD_FOCAL)
 
 
 WRIST_MOUNT = (0.0, -0.03, 0.03)

@@ -6,15 +6,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from devices.episode_files import write_camera_matrices
 from devices.episode_writer import EpisodeFrame, RawEpisodeWriter
-from devices.sim.cameras import head_camera, wrist_camera
+from devices.pose_transform import wilor_focal_px, wilor_from_camera
+from devices.sim.cameras import HEIGHT, WIDTH, head_camera, wrist_camera
 from devices.sim.catalogue import BIMANUAL_ACTIONS, CATALOGUE, SCENES, UNSEEN_OBJECTS
 from devices.sim.hand_model import hand_state
 from devices.sim.renderer import Capsules, Lighting, render
-from devices.sim.shapes import FaceSet, pose_at
+from devices.sim.rig import quat_wxyz, rokoko_joints, tracker_poses
+from devices.sim.shapes import FaceSet
 from devices.sim.task_scripts import SIDES, Planner
 from devices.sim.touch import Glove, cell_pressure
 from devices.sim.visibility import visible
@@ -23,7 +24,7 @@ from devices.snapshot import FPS
 from devices.tactile_layout import TactileLayout
 from devices.tactile_pipeline import TactileConfig
 
-WILOR_FOCAL = 5000 / 256 * 640
+WILOR_FOCAL = wilor_focal_px(WIDTH, HEIGHT)
 GLOVE_COLOUR = (44, 44, 50)
 SLEEVES = ((60, 80, 120), (120, 60, 50), (80, 80, 80), (150, 140, 120), (40, 90, 70))
 CAMERAS = ("chest", "left", "right")
@@ -96,14 +97,8 @@ def _wilor(head, joints: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarr
     """Head-camera joints in the WiLoR convention (focal 5000/256·640: depth scaled), with estimator noise."""
     uv, _, ok = head.project(joints)
     valid = bool((ok & head.in_image(uv)).mean() >= 0.6 and rng.random() > 0.03)
-    cam = head.to_camera(joints)
-    root = cam[0]
-    out = (cam - root) + root * np.array([1.0, 1.0, WILOR_FOCAL / head.focal * rng.normal(1.0, 0.02)])
+    out = wilor_from_camera(head.to_camera(joints), WILOR_FOCAL / head.focal * rng.normal(1.0, 0.02))
     return (out + rng.normal(0.0, 0.003, out.shape)).astype(np.float32), valid
-
-
-def _quat_wxyz(rotation: np.ndarray) -> np.ndarray:
-    return Rotation.from_matrix(rotation).as_quat(scalar_first=True).astype(np.float32)
 
 
 def _labels(script, times: np.ndarray) -> np.ndarray:
@@ -160,18 +155,12 @@ def generate_episode(root: Path, spec: EpisodeSpec, layout: TactileLayout | None
             writer.write(EpisodeFrame(
                 images=dict(zip(("ego", "wrist_left", "wrist_right"), images)),
                 wilor=(np.stack([w[0] for w in wilor]), np.array([w[1] for w in wilor])),
-                rokoko=(np.stack([h.joints[:, [0, 2, 1]] for h in hands]).astype(np.float32), np.ones(2, bool)),
-                glove=(glove.raw(pressure, layout, rng), np.ones(2, bool), np.stack([_quat_wxyz(p[:3, :3]) for p in hand_poses[k]])),
-                trackers=(_trackers(cameras[0].pose, hand_poses[k]), np.ones(3, bool)),
+                rokoko=(rokoko_joints(np.stack([h.joints for h in hands])), np.ones(2, bool)),
+                glove=(glove.raw(pressure, layout, rng), np.ones(2, bool), np.stack([quat_wxyz(p[:3, :3]) for p in hand_poses[k]])),
+                trackers=(tracker_poses(cameras[0].pose, hand_poses[k]), np.ones(3, bool)),
             ))
     write_camera_matrices(folder / "camera_matrix.txt", {name: cam.matrix for name, cam in zip(CAMERAS, cameras)})
     return stats
-
-
-def _trackers(head_pose: np.ndarray, hand_poses: np.ndarray) -> np.ndarray:
-    """(3, 7) chest, left wrist, right wrist: trans + rot (w, x, y, z) in the world frame."""
-    chest = pose_at(head_pose[:3, 3] + np.array([0.0, -0.05, -0.2]), head_pose[:3, :3])
-    return np.stack([np.concatenate([p[:3, 3], _quat_wxyz(p[:3, :3])]) for p in (chest, *hand_poses)]).astype(np.float32)
 
 
 def _count(stats: EpisodeStats, hands, pressure: np.ndarray, labels, cameras, objects) -> None:
