@@ -5,11 +5,11 @@ import argparse
 import sys
 
 from app import (bench_command, convert_command, demo_command, eval_command, export_onnx_command, grids_command, info_command,
-                 replay_command, simulate_command, split_command, train_command)
+                 live_command, record_command, replay_command, simulate_command, split_command, train_command)
 from devices.errors import UserError
 
 COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command, train_command,
-            eval_command, replay_command, export_onnx_command, bench_command)
+            eval_command, replay_command, live_command, record_command, export_onnx_command, bench_command)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -10,7 +10,8 @@
     [pose]                the calibration that brings mocap joints into the head-camera frame
     [model]               checkpoint, runtime, precision (default: the bundled nano model, torch fp32)
     [simulator]           episode = a recorded episode the simulated rig replays through the real
-                          protocols (pty gloves, Rokoko UDP, camera files); link_dir for its serial links
+                          protocols (pty gloves, Rokoko UDP to [hands]; cameras are its video files in
+                          [cameras]); link_dir for the gloves' serial links
 """
 from __future__ import annotations
 
@@ -25,29 +26,25 @@ from devices.jq_glove import JQGloveConfig
 from devices.oak_camera import OakCameraConfig
 from devices.opencv_camera import OpenCVCameraConfig
 from devices.openvr_trackers import OpenVRTrackersConfig
+from devices.rig_clock import RigClockConfig
 from devices.rokoko_udp import RokokoConfig
+from devices.sim.live_rig import SimulatedRigConfig
 from devices.snapshot import HANDS, VIEW_NAMES
 
 SECTIONS = ("clock", "cameras", "gloves", "hands", "trackers", "pose", "model", "simulator")
 
 
 @dataclass(frozen=True)
-class SimulatorSettings:
-    episode: Path
-    link_dir: Path
-
-
-@dataclass(frozen=True)
 class Scene:
     path: Path
-    clock: dict[str, float] = field(default_factory=dict)
+    clock: RigClockConfig = RigClockConfig()
     cameras: dict[str, OakCameraConfig | OpenCVCameraConfig] = field(default_factory=dict)
     gloves: dict[str, JQGloveConfig] = field(default_factory=dict)
     hands: RokokoConfig | None = None
     trackers: OpenVRTrackersConfig | None = None
     pose: dict[str, Any] = field(default_factory=dict)
     model: ModelChoice = field(default_factory=lambda: ModelChoice(default_checkpoint()))
-    simulator: SimulatorSettings | None = None
+    simulator: SimulatedRigConfig | None = None
 
 
 def read_scene(path: Path) -> Scene:
@@ -67,13 +64,13 @@ def read_scene(path: Path) -> Scene:
     base = path.resolve().parent
     try:
         return Scene(
-            path=path, clock=dict(table.get("clock", {})),
+            path=path, clock=_build(RigClockConfig, "clock", table.get("clock", {})),
             cameras={view: _camera(view, s, base) for view, s in _named(table, "cameras", VIEW_NAMES).items()},
             gloves={hand: _glove(hand, s, base) for hand, s in _named(table, "gloves", HANDS).items()},
             hands=_hands(table["hands"]) if "hands" in table else None,
             trackers=_trackers(table["trackers"]) if "trackers" in table else None,
             pose=dict(table.get("pose", {})), model=_model(table.get("model", {}), base),
-            simulator=_simulator(table["simulator"], base) if "simulator" in table else None)
+            simulator=_simulator(table["simulator"], table.get("hands", {}), base) if "simulator" in table else None)
     except UserError as exc:
         raise UserError(f"{path}: {exc}") from None
 
@@ -141,8 +138,14 @@ def _model(settings: dict, base: Path) -> ModelChoice:
     return _build(ModelChoice, "model", {"checkpoint": default_checkpoint(), **settings})
 
 
-def _simulator(settings: dict, base: Path) -> SimulatorSettings:
+def _simulator(settings: dict, hands: dict, base: Path) -> SimulatedRigConfig:
+    """The simulated rig sends its Rokoko datagrams to where [hands] listens."""
+    settings = dict(settings)
     if "episode" not in settings:
         raise UserError("[simulator] needs an episode to replay")
-    return SimulatorSettings(Path(_resolve(settings["episode"], base)),
-                             Path(_resolve(settings.get("link_dir", "/tmp/touchanything-sim"), base)))
+    settings["episode"] = Path(_resolve(settings["episode"], base))
+    if "link_dir" in settings:
+        settings["link_dir"] = Path(_resolve(settings["link_dir"], base))
+    receiver = RokokoConfig(**{k: v for k, v in hands.items() if k in ("host", "port")})
+    return _build(SimulatedRigConfig, "simulator", {"rokoko_host": receiver.host, "rokoko_port": receiver.port,
+                                                     **settings})

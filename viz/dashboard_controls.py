@@ -55,6 +55,7 @@ def build_controls(dash: "Dashboard") -> None:
         dpg.add_button(label="Record", tag="record_button", width=110, enabled=session.can_record,
                        callback=lambda: session.toggle_recording())
         dpg.add_button(label="Screenshot", width=110, callback=lambda: dash.request_screenshot())
+        dpg.add_text("", tag="recording_text")
 
 
 def _play_pause(dash: "Dashboard") -> None:
@@ -109,6 +110,8 @@ def build_tables() -> None:
 def update_tables(dash: "Dashboard", state: SessionState) -> None:
     dpg.set_value("model_text", f"model: {state.model}")
     dpg.set_value("message_text", dash.note or state.message)
+    dpg.configure_item("record_button", label="Stop recording" if state.recording else "Record")
+    dpg.set_value("recording_text", state.recording or "")
     playback = state.playback
     dpg.configure_item("transport", show=playback is not None)
     if playback is not None:
