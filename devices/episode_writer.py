@@ -2,7 +2,12 @@
 
 JSONL rows are flushed as they are written and videos are fragmented MP4, so a writer that dies keeps
 everything up to its last second; `pressure_grids.npz` is computed from the glove stream at `close()`
-(or later with `write_grids_from_glove`).
+(or later with `write_grids_from_glove`, which `touchanything grids FOLDER` runs).
+
+Every stream keeps one entry per frame once it exists, so line numbers and video frames stay the frame
+index: a JSONL stream that first appears at frame k starts with k empty lines and gets an empty line for
+a frame without it; a video that first appears at frame k starts with k black frames and repeats its last
+picture for a frame without it (as a rig that keeps the latest frame of every camera would).
 """
 from __future__ import annotations
 
@@ -66,32 +71,51 @@ class RawEpisodeWriter:
         self.config, self.crf = config, crf
         self.frames = 0
         self._videos: dict[str, VideoWriter] = {}
+        self._last_images: dict[str, np.ndarray] = {}
         self._streams: dict[str, IO[str]] = {}
         self._glove_raw: list[np.ndarray] = []
 
-    def _line(self, name: str, row: dict) -> None:
-        handle = self._streams.get(name)
-        if handle is None:
-            handle = self._streams[name] = open(self.folder / name, "w", buffering=1)
-            handle.writelines("{}\n" for _ in range(self.frames))
-        handle.write(json_line(row))
+    def _line(self, name: str, row: dict | None) -> None:
+        """Append `row` (None: an empty line) to a JSONL stream; an OSError names the file."""
+        try:
+            handle = self._streams.get(name)
+            if handle is None:
+                if row is None:
+                    return
+                handle = self._streams[name] = open(self.folder / name, "w", buffering=1)
+                handle.writelines("{}\n" for _ in range(self.frames))
+            handle.write("{}\n" if row is None else json_line(row))
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror, str(self.folder / name)) from exc
+
+    def _video(self, view: str, image: np.ndarray) -> VideoWriter:
+        """The view's writer, opened (after one black frame per earlier episode frame) when first seen."""
+        video = self._videos.get(view)
+        if video is None:
+            video = self._videos[view] = VideoWriter(self.folder / VIDEO_FILES[view], crf=self.crf)
+            black = np.zeros_like(image, dtype=np.uint8)
+            for _ in range(self.frames):
+                video.write(black)
+        return video
 
     def write(self, frame: EpisodeFrame) -> None:
-        """Append one frame to every stream it carries."""
+        """Append one frame to every stream (what the frame lacks is left empty or repeated, see above)."""
         index = self.frames
         for view, image in frame.images.items():
-            if view not in self._videos:
-                self._videos[view] = VideoWriter(self.folder / VIDEO_FILES[view], crf=self.crf)
-            self._videos[view].write(image)
-        if frame.wilor is not None:
-            self._line(WILOR_FILE, hands_row(index, *frame.wilor))
-        if frame.rokoko is not None:
-            self._line(ROKOKO_FILE, hands_row(index, *frame.rokoko))
-        if frame.trackers is not None:
-            self._line(VIVE_FILE, trackers_row(index, *frame.trackers))
+            self._video(view, image)
+            self._last_images[view] = image
+        for view, video in self._videos.items():
+            video.write(self._last_images[view])
         stamp = frame.timestamp_us if frame.timestamp_us is not None else index * FRAME_PERIOD_US
+        rows = {
+            WILOR_FILE: None if frame.wilor is None else hands_row(index, *frame.wilor),
+            ROKOKO_FILE: None if frame.rokoko is None else hands_row(index, *frame.rokoko),
+            VIVE_FILE: None if frame.trackers is None else trackers_row(index, *frame.trackers),
+            GLOVE_FILE: None if frame.glove is None else glove_row(index, stamp, *frame.glove),
+        }
+        for name, row in rows.items():
+            self._line(name, row)
         if frame.glove is not None:
-            self._line(GLOVE_FILE, glove_row(index, stamp, *frame.glove))
             raw, present, _ = frame.glove
             self._glove_raw.append(np.where(np.asarray(present)[:, None], raw, 0).astype(np.uint8))
         elif self._glove_raw:
@@ -99,12 +123,21 @@ class RawEpisodeWriter:
         self.frames += 1
 
     def close(self) -> PressureGrids | None:
-        """Finish the videos and streams; writes `pressure_grids.npz` when there is glove data."""
-        for video in self._videos.values():
-            video.close()
-        for handle in self._streams.values():
-            handle.close()
-        self._videos, self._streams = {}, {}
+        """Finish every video and stream (all of them, even when one fails: the first failure is raised
+        after the rest are closed and the grids written); writes `pressure_grids.npz` when there is glove data."""
+        failure: Exception | None = None
+        for finish in [video.close for video in self._videos.values()] + [h.close for h in self._streams.values()]:
+            try:
+                finish()
+            except Exception as exc:  # noqa: BLE001 - re-raised below, once everything else is closed
+                failure = failure or exc
+        self._videos, self._streams, self._last_images = {}, {}, {}
+        grids = self._close_grids()
+        if failure is not None:
+            raise failure
+        return grids
+
+    def _close_grids(self) -> PressureGrids | None:
         if not self._glove_raw:
             return None
         raw = np.zeros((self.frames, 2, 256), np.uint8)

@@ -31,6 +31,14 @@ def is_raw_episode(folder: Path) -> bool:
     return (folder / VIDEO_FILES["ego"]).is_file() or (folder / GLOVE_FILE).is_file()
 
 
+def missing_note(folder: Path, name: str) -> str:
+    """Why a required file may be missing, and the fix: a recording cut short has no pressure grids yet."""
+    if name == GRIDS_FILE and (folder / GLOVE_FILE).is_file():
+        return (f"missing required file (a recording cut short?); compute it from {GLOVE_FILE} with "
+                f"`touchanything grids {folder}`")
+    return "missing required file"
+
+
 def _try(problems: list[str], read, *args):
     try:
         return read(*args)
@@ -59,7 +67,8 @@ def open_raw_episode(folder: Path) -> Episode:
     folder = Path(folder)
     if not folder.is_dir():
         raise DataError(folder, None, "not a folder" if folder.exists() else "folder not found")
-    problems = [describe(folder / n, None, "missing required file") for n in REQUIRED_FILES if not (folder / n).exists()]
+    problems = [describe(folder / n, None, missing_note(folder, n))
+                for n in REQUIRED_FILES if not (folder / n).exists()]
     views = {}
     for view, name in VIDEO_FILES.items():
         if (folder / name).exists() and (reader := _try(problems, VideoReader, folder / name)) is not None:

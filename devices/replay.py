@@ -168,7 +168,7 @@ class ReplaySource:
         status["pose"] = self.config.pose_source if hands is not None else "absent"
         joints = hands.joints[index].reshape(42, 3) if hands else np.zeros((42, 3), np.float32)
         valid = hands.valid[index].copy() if hands else np.zeros(2, bool)
-        glove = ep.glove
+        glove, mocap = ep.glove, ep.rokoko
         status["glove"] = "ok" if glove is not None else "absent"
         return Snapshot(
             frame_index=index, t_us=int(self._clock() * 1e6), images=images, joints=joints, joints_valid=valid,
@@ -178,4 +178,7 @@ class ReplaySource:
             trackers={role: ep.trackers.poses[index, r] for r, role in enumerate(TRACKER_ROLES)
                       if ep.trackers is not None and ep.trackers.valid[index, r]},
             source_status=status,
+            glove_present=glove.present[index].copy() if glove is not None else None,
+            mocap_joints=mocap.joints[index].reshape(42, 3) if mocap is not None else None,
+            mocap_valid=mocap.valid[index].copy() if mocap is not None else None,
         )

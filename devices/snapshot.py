@@ -30,6 +30,11 @@ class Snapshot:
     imu_wxyz: (2, 4) float32 glove quaternions (w, x, y, z), when known.
     trackers: {role: (7,) float32 trans + rot}.
     source_status: {source: short human-readable status}.
+    glove_present: (2,) bool, which rows of `pressure_raw` hold a real sample (an absent glove's row is
+        zeros); None = every row that `pressure_raw` has.
+    mocap_joints: (42, 3) float32 hand-mocap joints before any transform (Rokoko Studio axes, metres),
+        zeros where invalid, with mocap_valid (2,) bool; None when the rig has no mocap.
+    source_age_ms: {source: age of the sample used (or refused as stale)} at `t_us`, for live sources.
     """
 
     frame_index: int
@@ -42,3 +47,7 @@ class Snapshot:
     imu_wxyz: np.ndarray | None = None
     trackers: dict[str, np.ndarray] = field(default_factory=dict)
     source_status: dict[str, str] = field(default_factory=dict)
+    glove_present: np.ndarray | None = None
+    mocap_joints: np.ndarray | None = None
+    mocap_valid: np.ndarray | None = None
+    source_age_ms: dict[str, float] = field(default_factory=dict)

@@ -1,0 +1,258 @@
+"""Recorder: Snapshots into raw episode folders that every reader opens, a queue that drops instead of
+blocking, writer errors kept and reported, a recording killed with SIGKILL that still replays, and the
+whole live path: simulated devices → adapters → rig clock → recorder → episode reader."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from devices.episode_loader import open_episode
+from devices.episode_streams import read_glove, read_hands
+from devices.episode_writer import EpisodeFrame, RawEpisodeWriter, write_grids_from_glove
+from devices.errors import UserError
+from devices.recorder import Recorder, RecorderConfig
+from devices.replay import ReplayConfig, ReplaySource
+from devices.rig_clock import RigClock
+from devices.snapshot import FPS, Snapshot
+from devices.threaded_source import now_us
+from devices.video_io import VideoReader
+from simulated_rig import frame_picture, simulated_rig
+
+TESTS = Path(__file__).resolve().parent
+
+
+def synthetic_snapshot(k: int) -> Snapshot:
+    """Frame k of a recording that names k in every stream: picture, joints, glove ramp (left glove only
+    on even frames), trackers from frame 10 on."""
+    joints = np.full((42, 3), k / 7, np.float32)
+    joints[:, 2] += 40
+    raw = np.stack([(np.arange(256) + k) % 256, np.full(256, k % 256)]).astype(np.uint8)
+    return Snapshot(
+        frame_index=k, t_us=1_000_000 + k * 33_333, images={"ego": frame_picture(k)},
+        joints=joints, joints_valid=np.array([True, k % 3 != 0]),
+        pressure_raw=raw, imu_wxyz=np.array([[1, 0, 0, 0], [0, 1, 0, 0]], np.float32),
+        glove_present=np.array([k % 2 == 0, True]),
+        trackers={"chest": np.full(7, k, np.float32)} if k >= 10 else {},
+    )
+
+
+def record_forever(folder: str) -> None:
+    """The crash test's child process: synthetic Snapshots at 30 fps into a Recorder until killed."""
+    recorder = Recorder(RecorderConfig(Path(folder)))
+    recorder.start()
+    start, k = time.monotonic(), 0
+    print("recording", flush=True)
+    while True:
+        time.sleep(max(0.0, start + k / FPS - time.monotonic()))
+        recorder.write(synthetic_snapshot(k))
+        k += 1
+
+
+def check_synthetic(episode, frames: int) -> None:
+    """Every stream of frames 0..frames-1 holds what synthetic_snapshot wrote."""
+    with VideoReader(episode.path / "chest.mp4") as video:
+        for k in range(frames):
+            expected = synthetic_snapshot(k)
+            assert np.abs(video.read(k).astype(int) - expected.images["ego"]).mean() < 8, k
+            valid = expected.joints_valid
+            assert np.array_equal(episode.wilor.valid[k], valid)
+            assert np.array_equal(episode.wilor.joints[k][valid], expected.joints.reshape(2, 21, 3)[valid])
+            present = expected.glove_present
+            assert np.array_equal(episode.glove.present[k], present)
+            assert np.array_equal(episode.glove.raw[k][present], expected.pressure_raw[present])
+            assert episode.glove.timestamps_us is None or episode.glove.timestamps_us[k] == expected.t_us
+            assert episode.trackers is None or episode.trackers.valid[k, 0] == (k >= 10)
+
+
+def test_a_recording_replays_with_every_stream(tmp_path):
+    folder = tmp_path / "Lab" / "task" / "take1"
+    with Recorder(RecorderConfig(folder)) as recorder:
+        for k in range(40):
+            recorder.write(synthetic_snapshot(k))
+    counters = recorder.counters
+    assert (counters.written, counters.dropped, counters.failed, counters.queued) == (40, 0, 0, 0)
+    assert recorder.status().startswith(f"stopped {folder}: 40 frames, 0 dropped, queue 0/60,")
+    with open_episode(folder) as episode:
+        assert episode.num_frames == 40 and episode.scene == "Lab"
+        assert episode.pressure.grids.shape == (40, 2, 21, 21)
+        check_synthetic(episode, 40)
+        assert np.array_equal(episode.trackers.poses[10:, 0], np.tile(np.arange(10, 40)[:, None], 7))
+        assert [p for p in episode.problems if "missing" in p] == [
+            f"{folder / name}: missing required file" for name in ("left.mp4", "right.mp4")]
+        assert episode.glove.timestamps_us is not None
+
+
+def test_replay_into_a_recorder_copies_the_episode(episode_dir, tmp_path):
+    with open_episode(episode_dir) as source, Recorder(RecorderConfig(tmp_path / "copy", queue_frames=100)) as rec:
+        for snapshot in ReplaySource(source, ReplayConfig(speed=None)):
+            rec.write(snapshot)
+    with open_episode(episode_dir) as source, open_episode(tmp_path / "copy") as copy:
+        assert copy.num_frames == source.num_frames == 40
+        for name in ("wilor", "rokoko"):
+            assert np.array_equal(copy.hands(name).valid, source.hands(name).valid)
+            assert np.array_equal(copy.hands(name).joints, source.hands(name).joints)
+        assert np.array_equal(copy.glove.raw, source.glove.raw)
+        assert np.array_equal(copy.glove.present, source.glove.present)
+        assert np.array_equal(copy.trackers.valid, source.trackers.valid)
+        assert np.array_equal(copy.trackers.poses, source.trackers.poses)
+        assert np.allclose(copy.pressure.grids, source.pressure.grids, equal_nan=True)
+        for view in source.view_names:
+            a, b = copy.views[view].read(39), source.views[view].read(39)
+            assert np.abs(a.astype(int) - b).mean() < 8
+
+
+def test_streams_keep_one_entry_per_frame_when_sources_come_and_go(tmp_path):
+    with RawEpisodeWriter(tmp_path / "ep") as writer:
+        for k in range(8):
+            frame = EpisodeFrame(images={"ego": frame_picture(k)} if k not in (4, 5) else {})
+            if k >= 2:
+                frame.images["wrist_left"] = frame_picture(50 + k)
+            if k % 2 == 0:
+                frame.wilor = (np.full((2, 21, 3), k, np.float32), np.array([True, True]))
+            if k >= 3 and k != 6:
+                frame.glove = (np.full((2, 256), k, np.uint8), np.array([True, True]), np.zeros((2, 4), np.float32))
+            writer.write(frame)
+    hands, _ = read_hands(tmp_path / "ep" / "wilor_hands.json")
+    assert hands.valid[:, 0].tolist() == [k % 2 == 0 for k in range(8)] and hands.joints[6, 0, 0, 0] == 6
+    glove, _ = read_glove(tmp_path / "ep" / "jq_pressure.json")
+    assert glove.present[:, 0].tolist() == [False] * 3 + [True] * 3 + [False, True] and glove.raw[7, 0, 0] == 7
+    with VideoReader(tmp_path / "ep" / "chest.mp4") as ego, VideoReader(tmp_path / "ep" / "left.mp4") as wrist:
+        assert ego.num_frames == wrist.num_frames == 8
+        for k, shown in enumerate([0, 1, 2, 3, 3, 3, 6, 7]):  # the last picture repeats while missing
+            assert np.abs(ego.read(k).astype(int) - frame_picture(shown)).mean() < 8
+        assert wrist.read(0).max() < 20 and wrist.read(1).max() < 20  # black before the view appears
+        assert np.abs(wrist.read(5).astype(int) - frame_picture(55)).mean() < 8
+
+
+def test_a_full_queue_drops_frames_and_write_never_blocks(tmp_path):
+    recorder = Recorder(RecorderConfig(tmp_path / "ep", queue_frames=2))
+    snapshots = [synthetic_snapshot(k) for k in range(60)]
+    recorder.write(snapshots[0])  # before start: dropped
+    assert recorder.counters.dropped == 1
+    recorder.start()
+    slowest = 0.0
+    for snapshot in snapshots:
+        began = time.perf_counter()
+        recorder.write(snapshot)
+        slowest = max(slowest, time.perf_counter() - began)
+    counters = recorder.stop()
+    recorder.write(snapshots[0])  # after stop: dropped
+    assert slowest < 0.05
+    assert counters.written >= 2 and counters.dropped >= 1 and counters.written + counters.dropped == 60
+    assert recorder.counters.dropped == counters.dropped + 1
+    with open_episode(tmp_path / "ep") as episode:
+        assert episode.num_frames == counters.written
+
+
+def test_bad_folders_and_settings_are_user_errors(tmp_path):
+    with pytest.raises(UserError, match="at least 1 frame"):
+        RecorderConfig(tmp_path / "ep", queue_frames=0)
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(UserError, match="cannot create the episode folder"):
+        Recorder(RecorderConfig(tmp_path / "file" / "ep")).start()
+    with Recorder(RecorderConfig(tmp_path / "ep")) as recorder:
+        recorder.write(synthetic_snapshot(0))
+        with pytest.raises(RuntimeError, match="already recording"):
+            recorder.start()
+    with pytest.raises(UserError, match="already holds a recording; choose a new folder"):
+        Recorder(RecorderConfig(tmp_path / "ep")).start()
+
+
+def test_a_disk_error_is_reported_and_what_was_written_is_kept(tmp_path):
+    folder = tmp_path / "ep"
+    folder.mkdir()
+    (folder / "vive_poses.json").symlink_to("/dev/full")  # the disk fills up when the trackers appear
+    recorder = Recorder(RecorderConfig(folder))
+    recorder.start()
+    for k in range(20):
+        recorder.write(synthetic_snapshot(k))
+    deadline = time.monotonic() + 10
+    while recorder.counters.written + recorder.counters.failed < 20 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert "failed: No space left on device" in recorder.status() and recorder.error.startswith("No space left")
+    kept = r"failed: No space left on device \(.*vive_poses.json\); the 10 frames written before are kept"
+    with pytest.raises(UserError, match=kept):
+        recorder.stop()
+    assert (recorder.counters.written, recorder.counters.failed) == (10, 10)
+    (folder / "vive_poses.json").unlink()  # reading /dev/full never ends
+    with open_episode(folder) as episode:
+        assert episode.num_frames == 10 and episode.pressure.grids.shape == (10, 2, 21, 21)
+        episode.trackers = None
+        check_synthetic(episode, 10)
+
+
+def test_a_killed_recording_replays_up_to_its_last_second_and_its_grids_can_be_rebuilt(tmp_path):
+    folder = tmp_path / "Lab" / "task" / "killed"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS.parent), str(TESTS)])}
+    child = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from test_recorder import record_forever; record_forever(sys.argv[1])",
+         str(folder)], stdout=subprocess.PIPE, env=env, cwd=TESTS)
+    try:
+        assert child.stdout.readline() == b"recording\n"
+        began = time.monotonic()
+        time.sleep(3.0)
+        child.send_signal(signal.SIGKILL)
+        elapsed = time.monotonic() - began
+    finally:
+        child.kill()
+        child.wait()
+    with open_episode(folder) as episode:
+        frames = episode.num_frames
+        assert frames >= (elapsed - 1) * FPS * 0.8, (frames, elapsed)
+        rows = len((folder / "wilor_hands.json").read_text().splitlines())
+        assert rows >= frames and len((folder / "jq_pressure.json").read_text().splitlines()) >= frames
+        assert episode.pressure is None
+        assert any("pressure_grids.npz: missing required file" in p and f"touchanything grids {folder}" in p
+                   for p in episode.problems)
+        check_synthetic(episode, frames)
+        replayed = [s.frame_index for s in ReplaySource(episode, ReplayConfig(speed=None))]
+        assert replayed == list(range(frames))
+    write_grids_from_glove(folder)  # what `touchanything grids FOLDER` runs
+    with open_episode(folder) as episode:
+        assert episode.num_frames == frames and episode.pressure.grids.shape == (frames, 2, 21, 21)
+        assert not any("missing" in p for p in episode.problems if "pressure_grids" in p)
+
+
+def test_live_rig_to_recording_and_back(tmp_path):
+    snapshots: list[Snapshot] = []
+    folder = tmp_path / "Lab" / "live" / "take"
+    with simulated_rig(tmp_path) as live:
+        deadline = time.monotonic() + 10
+        while any(i.source.latest() is None for i in live.inputs) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        recorder = Recorder(RecorderConfig(folder))
+        clock = RigClock(live.inputs)
+        clock.subscribe(snapshots.append)
+        clock.subscribe(recorder.write)
+        recorder.start()
+        started_us = now_us()
+        with clock:
+            time.sleep(2.0)
+            clock.unsubscribe(recorder.write)
+            written_ticks = len(snapshots)
+            live_status = recorder.status()
+        counters = recorder.stop()
+    assert live_status.startswith(f"recording {folder}:")
+    assert counters.dropped == 0 and counters.written == written_ticks and 45 <= written_ticks <= 75
+    recorded = snapshots[:written_ticks]
+    with open_episode(folder) as episode:
+        assert episode.num_frames == written_ticks and episode.view_names == ("ego",)
+        assert np.array_equal(episode.glove.timestamps_us, [s.t_us for s in recorded])
+        assert episode.glove.timestamps_us[0] >= started_us
+        for k, s in enumerate(recorded):
+            assert np.array_equal(episode.glove.present[k], s.glove_present)
+            assert np.array_equal(episode.glove.raw[k], s.pressure_raw)
+            assert np.array_equal(episode.glove.quat_wxyz[k], s.imu_wxyz)
+            assert np.array_equal(episode.wilor.joints[k], s.joints.reshape(2, 21, 3))
+            assert np.array_equal(episode.wilor.valid[k], s.joints_valid)
+            assert np.array_equal(episode.rokoko.joints[k], s.mocap_joints.reshape(2, 21, 3))
+            assert np.array_equal(episode.trackers.poses[k, 0], s.trackers["chest"])
+            assert np.abs(episode.views["ego"].read(k).astype(int) - s.images["ego"]).mean() < 8
+        assert episode.pressure.grids.shape == (written_ticks, 2, 21, 21)
