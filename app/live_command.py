@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
+
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("live", help="the live rig of a scene (devices or the simulated rig) in the dashboard")
@@ -54,6 +56,9 @@ def run_headless(session, seconds: float) -> dict:
                "latency_p50_ms": float(np.median(history)) if history.size else None, "cumulative": state.cumulative}
     print(f"summary   {summary['snapshots']} snapshots, {summary['predictions']} predictions, {summary['dropped']} "
           f"dropped by the engine; latency p50 {summary['latency_p50_ms'] or float('nan'):.0f} ms")
+    if state.cumulative is not None:
+        print("metrics   " + ", ".join(f"{k} {v:.3f}" for k, v in state.cumulative.items() if k in SHOWN_METRICS)
+              + " (against the gloves' live pressure)")
     return summary
 
 

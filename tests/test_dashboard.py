@@ -164,6 +164,45 @@ def test_a_checkpoint_for_another_preset_keeps_the_dashboard_running(dashboard_d
     assert result["truth"] is None and result["model"] == "no model"
 
 
+def live_run(recordings: Path) -> dict:
+    """The simulated rig in the dashboard, recording for about two seconds from another thread."""
+    from app.live_command import open_live_session
+
+    session = open_live_session(Path(__file__).resolve().parents[1] / "scenes" / "sim.toml")
+    session.recordings_dir = recordings
+    session.start()
+    dashboard = Dashboard(session)
+    errors: list[str] = []
+
+    def record() -> None:
+        try:
+            wait_for(lambda: session.state().prediction is not None, "a live prediction")
+            session.toggle_recording()
+            time.sleep(2.0)
+            session.toggle_recording()
+        except AssertionError as exc:
+            errors.append(str(exc))
+        finally:
+            dashboard.close()
+
+    thread = threading.Thread(target=record, daemon=True)
+    thread.start()
+    stats = dashboard.run()
+    thread.join(5)
+    return {"errors": errors, "frames": stats.frames, "message": session.message,
+            "camera_lag_ms": stats.camera_lag_ms}
+
+
+def test_the_live_dashboard_records_the_simulated_rig(dashboard_display, tmp_path):
+    result = in_fresh_process(live_run, tmp_path)
+    assert not result["errors"], result["errors"]
+    assert result["message"].startswith("recorded ") and result["frames"] > 10
+    folders = list((tmp_path / "Live" / "session").iterdir())
+    assert len(folders) == 1
+    with open_episode(folders[0]) as episode:
+        assert episode.num_frames >= 30 and set(episode.views) == set(VIEW_NAMES)
+
+
 def test_no_display_is_one_clear_line(monkeypatch, capsys):
     monkeypatch.delenv("DISPLAY", raising=False)
     assert main(["replay", str(sample_episodes()[0])]) == 2
