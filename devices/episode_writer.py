@@ -58,17 +58,18 @@ def _write_grids(folder: Path, raw: np.ndarray, layout: TactileLayout, config: T
 
 
 class RawEpisodeWriter:
-    """Writes one episode folder; streams appear when first given (earlier lines are left empty)."""
+    """Writes one episode folder; streams appear when first given (earlier lines are left empty).
+    crf / preset: the H.264 quality and x264 speed preset of the videos."""
 
     def __init__(self, folder: Path, layout: TactileLayout | None = None, config: TactileConfig = TactileConfig(),
-                 crf: int = 20) -> None:
+                 crf: int = 20, preset: str = "veryfast") -> None:
         self.folder = Path(folder)
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise DataError(self.folder, None, f"cannot create the episode folder ({exc.strerror})") from None
         self.layout = layout or TactileLayout.default()
-        self.config, self.crf = config, crf
+        self.config, self.crf, self.preset = config, crf, preset
         self.frames = 0
         self._videos: dict[str, VideoWriter] = {}
         self._last_images: dict[str, np.ndarray] = {}
@@ -92,7 +93,8 @@ class RawEpisodeWriter:
         """The view's writer, opened (after one black frame per earlier episode frame) when first seen."""
         video = self._videos.get(view)
         if video is None:
-            video = self._videos[view] = VideoWriter(self.folder / VIDEO_FILES[view], crf=self.crf)
+            video = self._videos[view] = VideoWriter(self.folder / VIDEO_FILES[view], crf=self.crf,
+                                                                 preset=self.preset)
             black = np.zeros_like(image, dtype=np.uint8)
             for _ in range(self.frames):
                 video.write(black)

@@ -5,6 +5,8 @@ hand's non-NaN, non-bend cells are strictly above the contact threshold (officia
 """
 from __future__ import annotations
 
+import functools
+
 import cv2
 import numpy as np
 
@@ -24,23 +26,33 @@ def hand_contact(grids: np.ndarray | None, bend: np.ndarray, threshold: float = 
 def contact_badges(predicted: np.ndarray | None, measured: np.ndarray | None, width: int, height: int) -> np.ndarray:
     """(height, width, 3) uint8: a row per hand with a predicted and a measured lamp (green = contact,
     grey = none, dark = unknown) and whether they agree."""
+    image = _badge_frame(width, height).copy()
+    row = max(height // 3, 14)
+    radius = max(min(row // 3, 12), 3)
+    for h in range(2):
+        y = row * (h + 2) - row // 2
+        for k, flags in enumerate((predicted, measured)):
+            colour = UNKNOWN if flags is None else (ON if flags[h] else OFF)
+            _disc(image, (width // 3 + 14 + k * (width // 3 - 10), y), radius, colour)
+        if predicted is not None and measured is not None:
+            agree = predicted[h] == measured[h]
+            put_text(image, "ok" if agree else "miss", (width - 46, y + 5), 0.4,
+                     (160, 230, 160) if agree else (255, 140, 120))
+    return image
+
+
+@functools.lru_cache(maxsize=8)
+def _badge_frame(width: int, height: int) -> np.ndarray:
+    """The labels (text rendering is the slow part, so drawn once per size)."""
     image = np.empty((height, width, 3), np.uint8)
     image[:] = BACKGROUND
     row = max(height // 3, 14)
     put_text(image, "contact", (8, row - 6), 0.45)
     put_text(image, "pred", (width // 3, row - 6), 0.4)
     put_text(image, "meas", (2 * width // 3 - 10, row - 6), 0.4)
-    radius = max(min(row // 3, 12), 3)
     for h, label in enumerate(("left", "right")):
-        y = row * (h + 2) - row // 2
-        put_text(image, label, (8, y + 5), 0.45)
-        for k, flags in enumerate((predicted, measured)):
-            colour = UNKNOWN if flags is None else (ON if flags[h] else OFF)
-            centre = (width // 3 + 14 + k * (width // 3 - 10), y)
-            _disc(image, centre, radius, colour)
-        if predicted is not None and measured is not None:
-            put_text(image, "ok" if predicted[h] == measured[h] else "miss", (width - 46, y + 5), 0.4,
-                     (160, 230, 160) if predicted[h] == measured[h] else (255, 140, 120))
+        put_text(image, label, (8, row * (h + 2) - row // 2 + 5), 0.45)
+    image.flags.writeable = False
     return image
 
 

@@ -211,7 +211,7 @@ class Dashboard:
         image = (np.clip(rgba.reshape(height, -1, 4)[..., :3], 0, 1) * 255).round().astype(np.uint8)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            if not cv2.imwrite(str(path), image[..., ::-1]):
+            if not cv2.imwrite(str(path), image[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 9]):
                 raise OSError("the image could not be encoded")
         except OSError as exc:
             self.note = f"screenshot not saved: {path}: {exc}"

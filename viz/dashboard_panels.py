@@ -27,7 +27,7 @@ def camera_panel(snapshot: Snapshot | None, view: str, used: bool, width: int, h
     image = None if snapshot is None else snapshot.images.get(view)
     if image is None:
         return blank(width, height, f"{VIEW_LABELS[view]}: no image")
-    small = cv2.resize(image, (width, height), interpolation=cv2.INTER_AREA)
+    small = cv2.resize(image, (width, height), interpolation=cv2.INTER_LINEAR)
     if view == "ego":
         small = draw_hands(small, snapshot.joints, snapshot.joints_valid, pressure)
     if not used:

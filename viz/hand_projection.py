@@ -35,22 +35,18 @@ def draw_hands(image: np.ndarray, joints: np.ndarray, valid: np.ndarray, pressur
     h, w = out.shape[:2]
     points = project_wilor(np.asarray(joints).reshape(2, 21, 3), w, h)
     values = joint_pressure(pressure) if pressure is not None else np.full((2, 21), np.nan)
-    colours = apply(values, PRESSURE_LUT, 0.0, 1.0, (255, 255, 255))
+    colours = apply(values, PRESSURE_LUT, 0.0, 1.0, (255, 255, 255)).tolist()
+    radii = (3 + np.round(6 * np.nan_to_num(values, nan=0.0))).astype(int).tolist()
+    finite = np.isfinite(points).all(axis=-1)
+    pixels = np.clip(np.round(np.nan_to_num(points)), -10_000, 10_000).astype(int).tolist()
     for hand in range(2):
-        if not valid[hand] or np.isnan(points[hand]).all():
+        if not valid[hand] or not finite[hand].any():
             continue
-        pts = points[hand]
+        pts, ok = pixels[hand], finite[hand]
         for a, b in BONES:
-            if np.isfinite(pts[[a, b]]).all():
-                cv2.line(out, _pixel(pts[a]), _pixel(pts[b]), HAND_COLOURS[hand], 2, cv2.LINE_AA)
-        for j in range(21):
-            if np.isfinite(pts[j]).all():
-                value = 0.0 if np.isnan(values[hand, j]) else float(values[hand, j])
-                radius = 3 + int(round(6 * value))
-                cv2.circle(out, _pixel(pts[j]), radius, tuple(int(c) for c in colours[hand, j]), -1, cv2.LINE_AA)
-                cv2.circle(out, _pixel(pts[j]), radius, (0, 0, 0), 1, cv2.LINE_AA)
+            if ok[a] and ok[b]:
+                cv2.line(out, pts[a], pts[b], HAND_COLOURS[hand], 2, cv2.LINE_AA)
+        for j in np.flatnonzero(ok):
+            cv2.circle(out, pts[j], radii[hand][j], colours[hand][j], -1, cv2.LINE_AA)
+            cv2.circle(out, pts[j], radii[hand][j], (0, 0, 0), 1, cv2.LINE_AA)
     return out
-
-
-def _pixel(point: np.ndarray) -> tuple[int, int]:
-    return tuple(int(v) for v in np.clip(np.round(point), -10_000, 10_000))
