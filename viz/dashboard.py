@@ -20,14 +20,18 @@ from devices.errors import UserError
 from devices.snapshot import VIEW_NAMES
 from devices.tactile_layout import TactileLayout
 from viz.dashboard_controls import build_controls, build_tables, update_tables
-from viz.dashboard_panels import blank, camera_panel, contact_panel, plots_panel, pressure_views
+from viz.contact import hand_contact
+from viz.dashboard_drawn import ContactLamps, HistoryPlots
+from viz.dashboard_panels import blank, camera_panel, pressure_views
 from viz.dashboard_state import DashboardSession, SessionState
 from viz.display import display_problem
 from viz.pressure_panel import maps_width
 from viz.textures import TextureSlot
 
 CAMERA = (256, 192)
-CELL = 7
+CAMERA_TEXTURE = (192, 144)
+"""Camera textures are uploaded smaller and drawn at CAMERA size (texture uploads dominate a frame)."""
+CELL = 6
 MAPS = (maps_width(CELL), 21 * CELL)
 CONTACT = (460, 84)
 PLOTS = (MAPS[0], MAPS[1] + 40)
@@ -103,29 +107,30 @@ class Dashboard:
 
     def _build(self) -> None:
         with dpg.texture_registry() as registry:
-            self.cameras = {view: TextureSlot(registry, *CAMERA) for view in VIEW_NAMES}
+            self.cameras = {view: TextureSlot(registry, *CAMERA_TEXTURE) for view in VIEW_NAMES}
             self.maps = {name: TextureSlot(registry, *MAPS) for name in MAP_NAMES}
-            self.contact = TextureSlot(registry, *CONTACT)
-            self.plots = TextureSlot(registry, *PLOTS)
         with dpg.window(tag="main"):
             with dpg.group(horizontal=True):
                 with dpg.group():
                     with dpg.group(horizontal=True):
                         for view in VIEW_NAMES:
-                            dpg.add_image(self.cameras[view].tag, tag=f"image_{view}")
+                            dpg.add_image(self.cameras[view].tag, tag=f"image_{view}", width=CAMERA[0],
+                                          height=CAMERA[1])
                     for row in (("measured", "predicted"), ("error", None)):
                         with dpg.group(horizontal=True):
                             for name in row:
                                 with dpg.group(width=MAPS[0] + 50):
                                     if name is None:
-                                        dpg.add_image(self.plots.tag, tag="image_plots")
+                                        self.plots = HistoryPlots(*PLOTS)
                                         continue
                                     dpg.add_text("", tag=f"title_{name}")
                                     dpg.add_image(self.maps[name].tag, tag=f"image_{name}")
-                                    dpg.add_text("left hand" + " " * 18 + "right hand")
+                                    with dpg.group(horizontal=True, horizontal_spacing=21 * CELL + 10 - 63):
+                                        dpg.add_text("left hand")
+                                        dpg.add_text("right hand")
                 with dpg.group():
                     build_controls(self)
-                    dpg.add_image(self.contact.tag, tag="image_contact")
+                    self.lamps = ContactLamps(*CONTACT)
                     build_tables()
 
     def _loop(self, max_frames: int | None, screenshot: Path | None) -> None:
@@ -156,7 +161,7 @@ class Dashboard:
     def _find_panels(self) -> None:
         """Record the panels' screen rectangles once dearpygui has laid them out."""
         rects = {}
-        for name in (*VIEW_NAMES, *MAP_NAMES, "contact", "plots"):
+        for name in (*VIEW_NAMES, *MAP_NAMES):
             (x, y), (w, h) = dpg.get_item_rect_min(f"image_{name}"), dpg.get_item_rect_size(f"image_{name}")
             rects[name] = (int(x), int(y), int(w), int(h))
         if all(w > 0 and h > 0 for _, _, w, h in rects.values()):
@@ -178,7 +183,7 @@ class Dashboard:
         pressure = None if prediction is None else prediction.pressure
         if self._changed("snapshot", state.snapshot) | self._changed("views", views):
             for view in VIEW_NAMES:
-                self.cameras[view].show(camera_panel(state.snapshot, view, view in views, *CAMERA, pressure))
+                self.cameras[view].show(camera_panel(state.snapshot, view, view in views, *CAMERA_TEXTURE, pressure))
             if state.snapshot is not None:
                 self.stats.camera_lag_ms.append((now_us - state.snapshot.t_us) / 1e3)
         settings = (self.session.threshold, self.outline, state.truth is None)
@@ -187,12 +192,13 @@ class Dashboard:
             for name, (image, title) in pressure_views(state, CELL, self.session.threshold, self.outline).items():
                 self.maps[name].show(blank(*MAPS, "n/a") if image is None else image)
                 dpg.set_value(f"title_{name}", title)
-            self.contact.show(contact_panel(state, self.bend, self.session.threshold, *CONTACT))
+            threshold = self.session.threshold
+            self.lamps.update(hand_contact(pressure, self.bend, threshold), hand_contact(state.truth, self.bend, threshold))
         if new_prediction and prediction is not None:
             self.stats.prediction_lag_ms.append((now_us - prediction.t_us) / 1e3)
         if time.perf_counter() >= self._plot_due:
             self._plot_due = time.perf_counter() + PLOT_PERIOD_S
-            self.plots.show(plots_panel(state, *PLOTS))
+            self.plots.update(state.history)
         update_tables(self, state)
 
     def request_screenshot(self, path: Path | None = None) -> None:

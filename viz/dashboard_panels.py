@@ -6,9 +6,7 @@ import numpy as np
 
 from devices.snapshot import Snapshot
 from viz.comparison_video import VIEW_LABELS
-from viz.contact import contact_badges, hand_contact
 from viz.hand_projection import draw_hands
-from viz.line_plot import LATENCY_PLOT_MS, PLOT_SAMPLES, line_plot
 from viz.dashboard_state import SessionState
 from viz.pressure_panel import BACKGROUND, pressure_maps, put_text
 
@@ -32,7 +30,7 @@ def camera_panel(snapshot: Snapshot | None, view: str, used: bool, width: int, h
         small = draw_hands(small, snapshot.joints, snapshot.joints_valid, pressure)
     if not used:
         small = (small * 0.35).astype(np.uint8)
-    put_text(small, VIEW_LABELS[view] + ("" if used else " - not used by the model"), (8, 20), 0.5)
+    put_text(small, VIEW_LABELS[view] + ("" if used else " - not used"), (6, 16), 0.4)
     return small
 
 
@@ -55,22 +53,3 @@ def pressure_views(state: SessionState, cell: int, threshold: float,
     error = (pressure_maps(pred - truth, cell, error=True), "Prediction - measured") \
         if pred is not None and truth is not None else (None, "Error: n/a")
     return {"measured": measured, "predicted": predicted, "error": error}
-
-
-def plots_panel(state: SessionState, width: int, height: int) -> np.ndarray:
-    """Rolling official metrics (3 s window) above capture-to-prediction latency, last PLOT_SAMPLES."""
-    top = height // 2
-    history = state.history
-    panel = np.empty((height, width, 3), np.uint8)
-    metrics = {"V-IoU": history.get("volumetric_iou", np.zeros(0)), "C-IoU": history.get("contact_iou", np.zeros(0))}
-    title = "metrics, rolling 3 s" if state.rolling is not None else "metrics: n/a (no ground truth)"
-    panel[:top] = line_plot(metrics, width, top, 1.0, title, PLOT_SAMPLES)
-    panel[top:] = line_plot({"latency": history.get("latency_ms", np.zeros(0))}, width, height - top,
-                            LATENCY_PLOT_MS, "capture to prediction", PLOT_SAMPLES, " ms")
-    return panel
-
-
-def contact_panel(state: SessionState, bend: np.ndarray, threshold: float, width: int, height: int) -> np.ndarray:
-    prediction = state.prediction
-    pred = None if prediction is None else prediction.pressure
-    return contact_badges(hand_contact(pred, bend, threshold), hand_contact(state.truth, bend, threshold), width, height)
