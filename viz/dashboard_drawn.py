@@ -62,7 +62,7 @@ class HistoryPlots:
                 for k, (key, _) in enumerate(series):
                     colour = SERIES_COLOURS[k]
                     self.lines[key] = dpg.draw_polyline([], color=colour, thickness=1)
-                    self.legends[key] = dpg.draw_text((width - 190 + 95 * k, top + 2), "", color=colour, size=14)
+                    self.legends[key] = dpg.draw_text((40 + 95 * k, top + 24), "", color=colour, size=14)
 
     def update(self, history: dict[str, np.ndarray]) -> None:
         for p, series in enumerate(self.PANES):
