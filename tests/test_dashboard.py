@@ -72,7 +72,7 @@ def test_the_dashboard_replays_the_sample_with_bounded_lag(dashboard_display, tm
         assert len(lags) > 30
         first, last = third_means(lags)
         assert last < 1.5 * first + 100, (first, last)  # no growth from start to end
-        assert max(lags) < 1500
+        assert max(lags) < 3000  # a sanity bound; the growth check above is the property
 
     image = cv2.imread(str(shot))[..., ::-1]
     rects = result["rects"]
