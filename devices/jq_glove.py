@@ -19,6 +19,7 @@ import serial
 
 from devices.errors import UserError
 from devices.jq_protocol import SIDE_SENSORS, JQParserCounters, JQSample, JQStreamParser
+from devices.worker_thread import start_worker, stop_worker
 
 SERIAL_BY_ID = Path("/dev/serial/by-id")
 RATE_WINDOW_US = 1_000_000
@@ -133,21 +134,11 @@ class JQGlove:
         self._reset_state()
         self._path = path
         self._stop.clear()
-        self._thread = threading.Thread(target=self._read_loop, args=(port,), daemon=True,
-                                        name=f"jq-glove-{self.config.side}")
-        try:
-            self._thread.start()
-        except RuntimeError:
-            port.close()
-            self._thread = None
-            raise
+        self._thread = start_worker(lambda: self._read_loop(port), f"jq-glove-{self.config.side}", port.close)
 
     def disconnect(self) -> None:
         """Stop the reader (returns within about one read timeout) and close the port."""
-        if self._thread is None:
-            return
-        self._stop.set()
-        self._thread.join()
+        stop_worker(self._thread, self._stop)
         self._thread = None
 
     def __enter__(self) -> "JQGlove":

@@ -19,7 +19,8 @@ from dataclasses import dataclass, replace
 from devices.errors import UserError
 from devices.rig_inputs import RigInput, build_snapshot, fill_order
 from devices.snapshot import Snapshot
-from devices.threaded_source import JOIN_TIMEOUT_S, now_us
+from devices.threaded_source import now_us
+from devices.worker_thread import start_worker, stop_worker
 
 Subscriber = Callable[[Snapshot], None]
 
@@ -100,15 +101,11 @@ class RigClock:
         with self._lock:
             self._counters, self._latest, self._last_error = RigClockCounters(), None, ""
         self._started_ns = time.monotonic_ns()
-        self._thread = threading.Thread(target=self._run, name="rig-clock", daemon=True)
-        self._thread.start()
+        self._thread = start_worker(self._run, "rig-clock")
 
     def stop(self) -> None:
         """Stop and join the clock thread; does nothing when not running."""
-        if self._thread is None:
-            return
-        self._stop.set()
-        self._thread.join(JOIN_TIMEOUT_S)
+        stop_worker(self._thread, self._stop)
         self._thread = None
 
     def __enter__(self) -> "RigClock":

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from devices.errors import UserError
 from devices.rokoko_protocol import RokokoFrame, RokokoProtocolError, decode_datagram
 from devices.snapshot import HANDS
+from devices.worker_thread import start_worker, stop_worker
 
 UDP_MAX_PAYLOAD = 65507
 """The largest UDP payload over IPv4."""
@@ -125,20 +126,13 @@ class RokokoReceiver:
         check_config(self.config)
         self._socket = bind_socket(self.config)
         self._stop.clear()
-        thread = threading.Thread(target=self._run, name="rokoko-udp", daemon=True)
-        try:
-            thread.start()
-        except BaseException:
-            self._close_socket()
-            raise
-        self._thread = thread
+        self._thread = start_worker(self._run, "rokoko-udp", self._close_socket)
 
     def disconnect(self) -> None:
         """Stop and join the reader thread, close the socket; does nothing when not connected."""
         if self._thread is None:
             return
-        self._stop.set()
-        self._thread.join()
+        stop_worker(self._thread, self._stop)
         self._thread = None
         self._close_socket()
 

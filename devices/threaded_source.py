@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Generic, TypeVar
 
 from devices.errors import UserError
+from devices.worker_thread import start_worker, stop_worker
 
 T = TypeVar("T")
 
@@ -22,9 +23,6 @@ RATE_SMOOTHING = 0.1
 """Weight of the newest interval in the exponential average behind the measured rate."""
 ERROR_PAUSE_S = 0.01
 """The reader waits this long after a failed step, so a persistent failure cannot spin a core."""
-JOIN_TIMEOUT_S = 5.0
-"""disconnect() waits this long for the reader; one stuck in a driver call is then left behind (a daemon
-thread) rather than hanging the shutdown."""
 
 
 def now_us() -> int:
@@ -128,15 +126,13 @@ class ThreadedSource(ABC, Generic[T]):
         except BaseException:
             self._close()
             raise
-        self._thread = threading.Thread(target=self._run, name=f"{self.name} reader", daemon=True)
-        self._thread.start()
+        self._thread = start_worker(self._run, f"{self.name} reader", self._close)
 
     def disconnect(self) -> None:
         """Stop and join the reader thread, then close the device; does nothing when not connected."""
         if self._thread is None:
             return
-        self._stop.set()
-        self._thread.join(JOIN_TIMEOUT_S)
+        stop_worker(self._thread, self._stop)
         self._thread = None
         self._close()
 

@@ -18,6 +18,7 @@ import numpy as np
 from devices.episode import Episode
 from devices.errors import UserError
 from devices.rokoko_protocol import encode_datagram
+from devices.worker_thread import start_worker, stop_worker
 
 HandsProvider = Callable[[int], tuple[np.ndarray, np.ndarray]]
 """frame index k → ((2, 21, 3) joints in Studio coordinates, (2,) bool hands present)."""
@@ -76,20 +77,13 @@ class SimulatedRokokoSender:
             raise UserError(f"cannot send simulated Rokoko data to {where}: unknown host ({exc})") from None
         self._socket = socket.socket(family, kind, proto)
         self._stop.clear()
-        thread = threading.Thread(target=self._run, name="rokoko-sim-sender", daemon=True)
-        try:
-            thread.start()
-        except BaseException:
-            self._close_socket()
-            raise
-        self._thread = thread
+        self._thread = start_worker(self._run, "rokoko-sim-sender", self._close_socket)
 
     def stop(self) -> None:
         """Stop and join the thread, close the socket; does nothing when not running."""
         if self._thread is None:
             return
-        self._stop.set()
-        self._thread.join()
+        stop_worker(self._thread, self._stop)
         self._thread = None
         self._close_socket()
 
