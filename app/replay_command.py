@@ -76,11 +76,10 @@ def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...],
     `screenshot` is saved); returns the closed dashboard (its stats, screenshots and session). A model
     that fails to load is reported in the dashboard, which then shows the cameras and the measured
     pressure only."""
-    problem = display_problem()
-    if problem:
-        raise UserError(f"cannot open the dashboard: {problem}; use --headless to write a video instead")
     with open_episode(path) as episode:
         _require_ego(path, episode)
+        if problem := display_problem():
+            raise UserError(f"cannot open the dashboard: {problem}; use --headless to write a video instead")
         try:
             engine, message = build_engine(choice, VIEW_NAMES), ""
         except UserError as exc:
