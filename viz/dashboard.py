@@ -14,6 +14,7 @@ from pathlib import Path
 
 import cv2
 import dearpygui.dearpygui as dpg
+import matplotlib
 import numpy as np
 
 from devices.errors import UserError
@@ -25,18 +26,29 @@ from viz.dashboard_drawn import ContactLamps, HistoryPlots
 from viz.dashboard_panels import blank, camera_panel, pressure_views
 from viz.dashboard_state import DashboardSession, SessionState
 from viz.display import display_problem
-from viz.pressure_panel import maps_width
+from viz.pressure_panel import MAP_GAP, maps_width
 from viz.textures import TextureSlot
 
 CAMERA = (256, 192)
 CAMERA_TEXTURE = (192, 144)
 """Camera textures are uploaded smaller and drawn at CAMERA size (texture uploads dominate a frame)."""
-CELL = 6
+CELL = 7
 MAPS = (maps_width(CELL), 21 * CELL)
 CONTACT = (460, 84)
 PLOTS = (MAPS[0], MAPS[1] + 40)
 MAP_NAMES = ("measured", "predicted", "error")
+MAP_COLUMN_GAP = 60
+WINDOW_COLOUR = (37, 37, 38)
+"""The viewport is cleared to this colour and the full-screen window draws no background of its own:
+under software OpenGL a blended full-screen quad costs about half of an otherwise empty frame."""
 PLOT_PERIOD_S = 0.2
+FONT_SIZE = 13
+FONT_RANGES = ((0x2010, 0x206F), (0x2070, 0x209F), (0x2190, 0x22FF))
+"""Beyond Latin-1: dashes and ellipsis, superscripts, arrows and mathematical operators (≤ ≥ − ×, →),
+which the messages of the devices and the engine use."""
+HAND_LABEL_SPACING = 21 * CELL + MAP_GAP - round(len("left hand") * 0.517 * FONT_SIZE)
+"""Puts "right hand" under the right map. The font is monospaced; dearpygui scales it so that ascent −
+descent is FONT_SIZE pixels, and DejaVu Sans Mono advances 0.517 of that per character."""
 
 
 @dataclass(frozen=True)
@@ -81,9 +93,10 @@ class Dashboard:
         self._plot_due = 0.0
 
     def run(self, max_frames: int | None = None, screenshot: Path | None = None) -> DashboardStats:
-        """Render until the window closes or `max_frames` frames; with `screenshot`, save the last frame
-        there as PNG first. Raises UserError when no X display is reachable (checked before dearpygui
-        starts: it would abort the process). The session is closed before the GUI is torn down (its
+        """Render until the window closes or `max_frames` frames; with `screenshot`, the content stops
+        changing after `max_frames` and that last frame (what `shown` holds) is saved there as PNG.
+        Raises UserError when no X display is reachable (checked before dearpygui starts: it would abort
+        the process). The session is closed before the GUI is torn down (its
         threads must not run while dearpygui destroys its context). One dashboard per process: dearpygui
         2.x does not survive a second context next to running decoder threads."""
         problem = display_problem()
@@ -99,13 +112,26 @@ class Dashboard:
             dpg.setup_dearpygui()
             dpg.show_viewport()
             dpg.set_primary_window("main", True)
+            dpg.configure_item("main", no_background=True)
+            dpg.set_viewport_clear_color((*WINDOW_COLOUR, 255))
             self._loop(max_frames, screenshot)
         finally:
             self.session.close()
             dpg.destroy_context()
         return self.stats
 
+    def _bind_font(self) -> None:
+        """DejaVu Sans Mono (shipped with matplotlib): dearpygui's built-in font has ASCII glyphs only."""
+        path = Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSansMono.ttf"
+        with dpg.font_registry():
+            with dpg.font(str(path), FONT_SIZE) as font:
+                dpg.add_font_range_hint(dpg.mvFontRangeHint_Default)
+                for first, last in FONT_RANGES:
+                    dpg.add_font_range(first, last)
+        dpg.bind_font(font)
+
     def _build(self) -> None:
+        self._bind_font()
         with dpg.texture_registry() as registry:
             self.cameras = {view: TextureSlot(registry, *CAMERA_TEXTURE) for view in VIEW_NAMES}
             self.maps = {name: TextureSlot(registry, *MAPS) for name in MAP_NAMES}
@@ -117,15 +143,15 @@ class Dashboard:
                             dpg.add_image(self.cameras[view].tag, tag=f"image_{view}", width=CAMERA[0],
                                           height=CAMERA[1])
                     for row in (("measured", "predicted"), ("error", None)):
-                        with dpg.group(horizontal=True):
+                        with dpg.group(horizontal=True, horizontal_spacing=MAP_COLUMN_GAP):
                             for name in row:
-                                with dpg.group(width=MAPS[0] + 50):
+                                with dpg.group():
                                     if name is None:
                                         self.plots = HistoryPlots(*PLOTS)
                                         continue
                                     dpg.add_text("", tag=f"title_{name}")
-                                    dpg.add_image(self.maps[name].tag, tag=f"image_{name}")
-                                    with dpg.group(horizontal=True, horizontal_spacing=21 * CELL + 10 - 63):
+                                    dpg.add_image(self.maps[name].tag, tag=f"image_{name}", width=MAPS[0], height=MAPS[1])
+                                    with dpg.group(horizontal=True, horizontal_spacing=HAND_LABEL_SPACING):
                                         dpg.add_text("left hand")
                                         dpg.add_text("right hand")
                 with dpg.group():
@@ -137,7 +163,9 @@ class Dashboard:
         start = time.perf_counter()
         while dpg.is_dearpygui_running() and not self._closing:
             dpg.run_callbacks(dpg.get_callback_queue())
-            self._update(self.session.state())
+            finishing = max_frames is not None and self.stats.frames >= max_frames
+            if not finishing:
+                self._update(self.session.state())
             dpg.render_dearpygui_frame()
             if not self.panel_rects:
                 self._find_panels()

@@ -20,7 +20,9 @@ SPEEDS = ("0.25", "0.5", "1", "2", "4")
 METRIC_ROWS = (("temporal_accuracy", "temporal accuracy"), ("contact_iou", "contact IoU"),
                ("volumetric_iou", "volumetric IoU"), ("mae", "MAE"))
 STAGES = ("preprocess", "encode", "head", "total")
-DEVICE_ROWS = 8
+DEVICE_ROWS = 10
+DEVICE_COLUMNS = (("source", 1.1), ("state", 2.2), ("rate", 0.7), ("age", 0.7), ("drops", 0.6))
+"""Device table columns and their relative widths."""
 
 
 def build_controls(dash: "Dashboard") -> None:
@@ -90,21 +92,24 @@ def build_tables() -> None:
                 dpg.add_text(label)
                 dpg.add_text("n/a", tag=f"rolling_{key}")
                 dpg.add_text("n/a", tag=f"cumulative_{key}")
-    dpg.add_text("", tag="performance_text")
+    dpg.add_text("", tag="performance_text", wrap=460)
     with dpg.table(header_row=True, tag="stage_table"):
-        for title in ("engine stage", "ms (mean of 30)"):
-            dpg.add_table_column(label=title)
+        dpg.add_table_column(label="engine ms")
         for stage in STAGES:
-            with dpg.table_row():
-                dpg.add_text(stage)
+            dpg.add_table_column(label=stage)
+        with dpg.table_row():
+            dpg.add_text("mean of 30")
+            for stage in STAGES:
                 dpg.add_text("-", tag=f"stage_{stage}")
-    with dpg.table(header_row=True, tag="device_table"):
-        for title in ("source", "state", "rate", "age", "drops"):
-            dpg.add_table_column(label=title)
+    with dpg.table(header_row=True, tag="device_table", policy=dpg.mvTable_SizingStretchProp):
+        for title, weight in DEVICE_COLUMNS:
+            dpg.add_table_column(label=title, init_width_or_weight=weight)
         for row in range(DEVICE_ROWS):
-            with dpg.table_row():
-                for column in range(5):
+            with dpg.table_row(tag=f"device_row_{row}"):
+                for column in range(len(DEVICE_COLUMNS)):
                     dpg.add_text("", tag=f"device_{row}_{column}")
+            with dpg.tooltip(f"device_{row}_1"):
+                dpg.add_text("", tag=f"device_{row}_full", wrap=500)
 
 
 def update_tables(dash: "Dashboard", state: SessionState) -> None:
@@ -128,9 +133,11 @@ def update_tables(dash: "Dashboard", state: SessionState) -> None:
     dpg.set_value("performance_text", _performance_line(dash, state))
     rows = state.sources[:DEVICE_ROWS]
     for row in range(DEVICE_ROWS):
-        cells = _device_cells(rows[row]) if row < len(rows) else ("",) * 5
-        for column, text in enumerate(cells):
-            dpg.set_value(f"device_{row}_{column}", text)
+        dpg.configure_item(f"device_row_{row}", show=row < len(rows))
+        if row < len(rows):
+            for column, text in enumerate(_device_cells(rows[row])):
+                dpg.set_value(f"device_{row}_{column}", text)
+            dpg.set_value(f"device_{row}_full", rows[row].detail or "no details")
 
 
 def _metric(values: dict[str, float] | None, key: str) -> str:
@@ -142,7 +149,7 @@ def _performance_line(dash: "Dashboard", state: SessionState) -> str:
     latency = state.history.get("latency_ms", np.zeros(0))[-30:]
     text = f"display {dash.stats.fps:.0f} fps, engine {state.engine_fps:.1f} fps"
     if latency.size:
-        text += f", latency p50 {np.median(latency):.0f} ms, max {latency.max():.0f} ms (last 30)"
+        text += f", capture-to-prediction latency p50 {np.median(latency):.0f} ms, max {latency.max():.0f} ms (last 30)"
     return text
 
 

@@ -18,7 +18,7 @@ FONT = cv2.FONT_HERSHEY_SIMPLEX
 def hand_map(grid: np.ndarray, cell: int, error: bool = False) -> np.ndarray:
     """(21, 21) grid → (21·cell, 21·cell, 3) uint8; pressure on [0, 1] or error on [−1, 1]."""
     colours = apply(grid, ERROR_LUT, -1.0, 1.0, AXES) if error else apply(grid, PRESSURE_LUT, 0.0, 1.0, AXES)
-    return np.repeat(np.repeat(colours, cell, axis=0), cell, axis=1)
+    return cv2.resize(colours, (21 * cell, 21 * cell), interpolation=cv2.INTER_NEAREST)
 
 
 def draw_contact_outline(image: np.ndarray, grid: np.ndarray, cell: int, threshold: float,
@@ -41,10 +41,13 @@ def put_text(image: np.ndarray, text: str, origin: tuple[int, int], scale: float
     cv2.putText(image, text, origin, FONT, scale, colour, 1, cv2.LINE_AA)
 
 
+@functools.lru_cache(maxsize=16)
 def colour_bar(height: int, width: int = 14, error: bool = False) -> np.ndarray:
-    """A vertical colour bar, maximum at the top."""
+    """A vertical colour bar, maximum at the top (cached: read-only)."""
     values = np.linspace(1.0, -1.0 if error else 0.0, height)[:, None].repeat(width, axis=1)
-    return apply(values, ERROR_LUT if error else PRESSURE_LUT, -1.0 if error else 0.0, 1.0, AXES)
+    bar = apply(values, ERROR_LUT if error else PRESSURE_LUT, -1.0 if error else 0.0, 1.0, AXES)
+    bar.flags.writeable = False
+    return bar
 
 
 def pressure_panel(grids: np.ndarray, title: str, width: int, height: int, error: bool = False,
@@ -78,7 +81,8 @@ def pressure_maps(grids: np.ndarray, cell: int, error: bool = False, outline: np
     of `outline`) and, with `bar`, the colour bar; without text (for the dashboard's textures)."""
     size = 21 * cell
     image = np.empty((size, maps_width(cell) if bar else 2 * size + MAP_GAP, 3), np.uint8)
-    image[:] = BACKGROUND
+    image[:, size:size + MAP_GAP] = BACKGROUND
+    image[:, 2 * size + MAP_GAP:] = BACKGROUND
     for h in range(2):
         left = h * (size + MAP_GAP)
         image[:, left:left + size] = hand_map(grids[h], cell, error)
