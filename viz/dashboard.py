@@ -20,8 +20,8 @@ import numpy as np
 from devices.errors import UserError
 from devices.snapshot import VIEW_NAMES
 from devices.tactile_layout import TactileLayout
-from viz.dashboard_controls import build_controls, build_tables, update_tables
 from viz.contact import hand_contact
+from viz.dashboard_controls import build_controls, build_tables, update_tables
 from viz.dashboard_drawn import ContactLamps, HistoryPlots
 from viz.dashboard_panels import blank, camera_panel, pressure_views
 from viz.dashboard_state import DashboardSession, SessionState
@@ -123,11 +123,10 @@ class Dashboard:
     def _bind_font(self) -> None:
         """DejaVu Sans Mono (shipped with matplotlib): dearpygui's built-in font has ASCII glyphs only."""
         path = Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSansMono.ttf"
-        with dpg.font_registry():
-            with dpg.font(str(path), FONT_SIZE) as font:
-                dpg.add_font_range_hint(dpg.mvFontRangeHint_Default)
-                for first, last in FONT_RANGES:
-                    dpg.add_font_range(first, last)
+        with dpg.font_registry(), dpg.font(str(path), FONT_SIZE) as font:
+            dpg.add_font_range_hint(dpg.mvFontRangeHint_Default)
+            for first, last in FONT_RANGES:
+                dpg.add_font_range(first, last)
         dpg.bind_font(font)
 
     def _build(self) -> None:

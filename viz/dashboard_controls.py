@@ -25,7 +25,7 @@ DEVICE_COLUMNS = (("source", 1.1), ("state", 2.2), ("rate", 0.7), ("age", 0.7), 
 """Device table columns and their relative widths."""
 
 
-def build_controls(dash: "Dashboard") -> None:
+def build_controls(dash: Dashboard) -> None:
     session = dash.session
     dpg.add_text("", tag="model_text")
     dpg.add_text("", tag="message_text", wrap=460)
@@ -60,7 +60,7 @@ def build_controls(dash: "Dashboard") -> None:
         dpg.add_text("", tag="recording_text")
 
 
-def _play_pause(dash: "Dashboard") -> None:
+def _play_pause(dash: Dashboard) -> None:
     playback = dash.session.state().playback
     if playback is not None and playback.paused:
         dash.session.play()
@@ -68,15 +68,15 @@ def _play_pause(dash: "Dashboard") -> None:
         dash.session.pause()
 
 
-def _set_views(dash: "Dashboard") -> None:
+def _set_views(dash: Dashboard) -> None:
     dash.session.set_views(tuple(v for v in VIEW_NAMES if dpg.get_value(f"view_{v}")))
 
 
-def _set_model(dash: "Dashboard") -> None:
+def _set_model(dash: Dashboard) -> None:
     dash.session.set_model(dpg.get_value("model"), dpg.get_value("tier"))
 
 
-def _set_threshold(dash: "Dashboard", value: float) -> None:
+def _set_threshold(dash: Dashboard, value: float) -> None:
     try:
         dash.session.set_threshold(float(value))
     except UserError as exc:
@@ -112,7 +112,7 @@ def build_tables() -> None:
                 dpg.add_text("", tag=f"device_{row}_full", wrap=500)
 
 
-def update_tables(dash: "Dashboard", state: SessionState) -> None:
+def update_tables(dash: Dashboard, state: SessionState) -> None:
     dpg.set_value("model_text", f"model: {state.model}")
     dpg.set_value("message_text", dash.note or state.message)
     dpg.configure_item("record_button", label="Stop recording" if state.recording else "Record")
@@ -145,7 +145,7 @@ def _metric(values: dict[str, float] | None, key: str) -> str:
     return "n/a" if value is None or math.isnan(value) else f"{value:.3f}"
 
 
-def _performance_line(dash: "Dashboard", state: SessionState) -> str:
+def _performance_line(dash: Dashboard, state: SessionState) -> str:
     latency = state.history.get("latency_ms", np.zeros(0))[-30:]
     text = f"display {dash.stats.fps:.0f} fps, engine {state.engine_fps:.1f} fps"
     if latency.size:

@@ -6,8 +6,8 @@ import numpy as np
 
 from devices.snapshot import Snapshot
 from viz.comparison_video import VIEW_LABELS
-from viz.hand_projection import draw_hands
 from viz.dashboard_state import SessionState
+from viz.hand_projection import draw_hands
 from viz.pressure_panel import BACKGROUND, pressure_maps, put_text
 
 
