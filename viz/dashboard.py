@@ -2,9 +2,9 @@
 contact lamps, running metrics, latency per stage, device status, and the session's controls.
 
 The render loop runs on the calling thread and never waits for devices or the engine: each frame it
-reads the session's latest state and re-uploads a texture only when its content changed (cameras on a new
-snapshot, maps on a new prediction, plots at most 5 times a second). Callbacks run on the same thread
-(manual callback management), between frames.
+reads the session's latest state and rebuilds an image only when its content changed (cameras on a new
+snapshot, maps on a new prediction); plots are refreshed at most 5 and tables 10 times a second.
+Callbacks run on the same thread (manual callback management), between frames.
 """
 from __future__ import annotations
 
@@ -41,11 +41,9 @@ MAP_COLUMN_GAP = 60
 WINDOW_COLOUR = (37, 37, 38)
 """The viewport is cleared to this colour and the full-screen window draws no background of its own:
 under software OpenGL a blended full-screen quad costs about half of an otherwise empty frame."""
-PLOT_PERIOD_S = 0.2
+REFRESH_PERIODS_S = {"plots": 0.2, "tables": 0.1}
+"""The plots and the text tables are refreshed at most this often (every frame would only cost CPU)."""
 FONT_SIZE = 13
-FONT_RANGES = ((0x2010, 0x206F), (0x2070, 0x209F), (0x2190, 0x22FF))
-"""Beyond Latin-1: dashes and ellipsis, superscripts, arrows and mathematical operators (≤ ≥ − ×, →),
-which the messages of the devices and the engine use."""
 HAND_LABEL_SPACING = 21 * CELL + MAP_GAP - round(len("left hand") * 0.517 * FONT_SIZE)
 """Puts "right hand" under the right map. The font is monospaced; dearpygui scales it so that ascent −
 descent is FONT_SIZE pixels, and DejaVu Sans Mono advances 0.517 of that per character."""
@@ -90,7 +88,7 @@ class Dashboard:
         self.panel_rects: dict[str, tuple[int, int, int, int]] = {}
         """Where each image panel is on screen: name → (x, y, width, height) in viewport pixels."""
         self._shown: dict[str, object] = {}
-        self._plot_due = 0.0
+        self._due = dict.fromkeys(REFRESH_PERIODS_S, 0.0)
 
     def run(self, max_frames: int | None = None, screenshot: Path | None = None) -> DashboardStats:
         """Render until the window closes or `max_frames` frames; with `screenshot`, the content stops
@@ -121,13 +119,11 @@ class Dashboard:
         return self.stats
 
     def _bind_font(self) -> None:
-        """DejaVu Sans Mono (shipped with matplotlib): dearpygui's built-in font has ASCII glyphs only."""
+        """DejaVu Sans Mono (shipped with matplotlib): dearpygui's built-in font has ASCII glyphs only, and
+        the messages of the devices and the engine use arrows, dashes and signs such as ≤ − × →."""
         path = Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSansMono.ttf"
-        with dpg.font_registry(), dpg.font(str(path), FONT_SIZE) as font:
-            dpg.add_font_range_hint(dpg.mvFontRangeHint_Default)
-            for first, last in FONT_RANGES:
-                dpg.add_font_range(first, last)
-        dpg.bind_font(font)
+        with dpg.font_registry():
+            dpg.bind_font(dpg.add_font(str(path), FONT_SIZE))
 
     def _build(self) -> None:
         self._bind_font()
@@ -223,10 +219,18 @@ class Dashboard:
             self.lamps.update(hand_contact(pressure, self.bend, threshold), hand_contact(state.truth, self.bend, threshold))
         if new_prediction and prediction is not None:
             self.stats.prediction_lag_ms.append((now_us - prediction.t_us) / 1e3)
-        if time.perf_counter() >= self._plot_due:
-            self._plot_due = time.perf_counter() + PLOT_PERIOD_S
+        if self._refresh_due("plots"):
             self.plots.update(state.history)
-        update_tables(self, state)
+        if self._refresh_due("tables"):
+            update_tables(self, state)
+
+    def _refresh_due(self, name: str) -> bool:
+        """Whether `name` is due for a refresh (then the next one is scheduled)."""
+        now = time.perf_counter()
+        if now < self._due[name]:
+            return False
+        self._due[name] = now + REFRESH_PERIODS_S[name]
+        return True
 
     def request_screenshot(self, path: Path | None = None) -> None:
         """Save the next rendered frame as PNG (default: a timestamped file under the screenshot folder)."""

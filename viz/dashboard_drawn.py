@@ -1,6 +1,7 @@
-"""Dashboard widgets drawn as dearpygui geometry instead of textures (texture uploads are the expensive
-part of a frame under software OpenGL): the contact lamps and the history plots. They show what the
-exporter's `contact_badges` and `line_plot` images show, with the same colours."""
+"""Dashboard widgets drawn as dearpygui geometry instead of textures (dearpygui re-uploads every texture
+every frame): the contact lamps and the history plots. They show what the exporter's `contact_badges`
+and `line_plot` images show, with the same colours, on the window's own background (under software
+OpenGL every covered pixel costs, about 20 ns of CPU per frame)."""
 from __future__ import annotations
 
 import dearpygui.dearpygui as dpg
@@ -8,7 +9,7 @@ import numpy as np
 
 from viz.contact import OFF, ON, UNKNOWN
 from viz.line_plot import LATENCY_PLOT_MS, PLOT_SAMPLES, SERIES_COLOURS
-from viz.pressure_panel import AXES, BACKGROUND
+from viz.pressure_panel import AXES
 
 AGREE, DISAGREE = (160, 230, 160), (255, 140, 120)
 
@@ -19,7 +20,6 @@ class ContactLamps:
     def __init__(self, width: int, height: int) -> None:
         row = height // 3
         with dpg.drawlist(width, height):
-            dpg.draw_rectangle((0, 0), (width, height), fill=BACKGROUND, color=BACKGROUND)
             dpg.draw_text((8, 4), "contact", size=15)
             dpg.draw_text((width // 3, 4), "pred", size=14)
             dpg.draw_text((2 * width // 3 - 10, 4), "meas", size=14)
@@ -52,7 +52,6 @@ class HistoryPlots:
         self.lines: dict[str, int] = {}
         self.legends: dict[str, int] = {}
         with dpg.drawlist(width, height):
-            dpg.draw_rectangle((0, 0), (width, height), fill=BACKGROUND, color=BACKGROUND)
             for p, (series, title) in enumerate(zip(self.PANES, ("metrics, rolling 3 s", "capture to prediction"))):
                 top = p * self.pane
                 dpg.draw_rectangle((34, top + 22), (width - 6, top + self.pane - 8), fill=AXES, color=AXES)
