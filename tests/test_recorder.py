@@ -137,14 +137,15 @@ def test_a_full_queue_drops_frames_and_write_never_blocks(tmp_path):
     recorder.write(snapshots[0])  # before start: dropped
     assert recorder.counters.dropped == 1
     recorder.start()
-    slowest = 0.0
+    durations = []
     for snapshot in snapshots:
         began = time.perf_counter()
         recorder.write(snapshot)
-        slowest = max(slowest, time.perf_counter() - began)
+        durations.append(time.perf_counter() - began)
     counters = recorder.stop()
     recorder.write(snapshots[0])  # after stop: dropped
-    assert slowest < 0.05
+    # a blocking write would wait for a frame to be encoded (tens of ms) every time the queue is full
+    assert np.median(durations) < 0.005 and max(durations) < 0.5
     assert counters.written >= 2 and counters.dropped >= 1 and counters.written + counters.dropped == 60
     assert recorder.counters.dropped == counters.dropped + 1
     with open_episode(tmp_path / "ep") as episode:
