@@ -31,7 +31,7 @@ from viz.textures import TextureSlot
 
 CAMERA = (256, 192)
 CAMERA_TEXTURE = (192, 144)
-"""Camera textures are uploaded smaller and drawn at CAMERA size (texture uploads dominate a frame)."""
+"""Camera textures are smaller than drawn (CAMERA): dearpygui re-uploads every raw texture every frame."""
 CELL = 7
 MAPS = (maps_width(CELL), 21 * CELL)
 CONTACT = (460, 84)
@@ -94,9 +94,9 @@ class Dashboard:
         """Render until the window closes or `max_frames` frames; with `screenshot`, the content stops
         changing after `max_frames` and that last frame (what `shown` holds) is saved there as PNG.
         Raises UserError when no X display is reachable (checked before dearpygui starts: it would abort
-        the process). The session is closed before the GUI is torn down (its
-        threads must not run while dearpygui destroys its context). One dashboard per process: dearpygui
-        2.x does not survive a second context next to running decoder threads."""
+        the process). The session is closed before the GUI is torn down (its threads must not run while
+        dearpygui destroys its context). One dashboard per process: dearpygui 2.x does not survive a
+        second context next to running decoder threads."""
         problem = display_problem()
         if problem:
             self.session.close()
