@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 
 from viz.colormap import ERROR_LUT, PRESSURE_LUT
-from viz.pressure_panel import AXES, BACKGROUND, BAR_WIDTH, MAP_GAP, maps_width, pressure_maps
+from viz.pressure_panel import (
+    AXES,
+    BACKGROUND,
+    BAR_WIDTH,
+    MAP_GAP,
+    maps_width,
+    pressure_maps,
+)
 
 CELL = 7
 SIZE = 21 * CELL
