@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from devices.episode_loader import open_episode
@@ -108,8 +108,12 @@ def test_corruption_never_yields_a_foreign_sample_and_the_parser_recovers(count,
     stream = b"".join(encode_sample(sides[i], *indexed_sample(i)) for i in range(count)) + SYNC
     starts = [SAMPLE * (i // 2) + FIRST * (i % 2) for i in range(2 * count)]
     edited = data.draw(st.lists(st.integers(0, 2 * count - 1), min_size=1, max_size=4, unique=True))
-    edits = [(starts[p], data.draw(st.sampled_from(["insert", "delete", "flip"])), data.draw(st.integers(0, 130)),
-              data.draw(st.binary(min_size=1, max_size=200))) for p in edited]
+    kinds = {p: data.draw(st.sampled_from(["insert", "delete", "flip"])) for p in edited}
+    offsets = {p: data.draw(st.integers(0, 130)) for p in edited}
+    # Bytes deleted from a payload and garbage inserted right before the next packet's sync can restore
+    # the packet's length exactly: a payload substitution, which no parser can detect (no checksum).
+    assume(not any(kinds[p] == "delete" and kinds.get(p + 1) == "insert" and offsets[p + 1] == 0 for p in edited))
+    edits = [(starts[p], kinds[p], offsets[p], data.draw(st.binary(min_size=1, max_size=200))) for p in edited]
     broken, first, last = corrupt(stream, edits)
     parser = JQStreamParser()
     samples = feed_all(parser, broken, sorted(set(data.draw(st.lists(st.integers(1, len(broken) - 1), max_size=20)))))
