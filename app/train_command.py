@@ -2,10 +2,11 @@
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
-from inference.train_config import train_config_from_file
+from inference.train_config import describe_settings, train_config_from_file
 from inference.trainer import BEST, LAST, Trainer
 
 
@@ -22,6 +23,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     config = train_config_from_file(args.config)
     out = args.out or Path("checkpoints") / f"{time.strftime('%Y%m%d_%H%M%S')}_{config.model.backbone}_tactile_prediction_{args.config.stem}"
+    if os.environ.get("RANK", "0") == "0":
+        print("\n".join([f"config {args.config}", *describe_settings(config)]), flush=True)
     trainer = Trainer(config, args.data, out, args.split_file)
     if args.resume:
         trainer.resume(args.resume)

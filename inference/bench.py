@@ -22,9 +22,9 @@ from devices.snapshot import VIEW_NAMES, Snapshot
 from devices.tactile_layout import TactileLayout
 from inference.bench_data import BenchEpisode, resident_mb
 from inference.engine_config import EngineConfig
-from inference.frame_ring import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from inference.evaluation import trajectory_metrics
 from inference.metrics import aggregate
+from inference.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from inference.onnx_export import export_onnx
 from inference.pose_encoder import prepare_poses
 from inference.preprocess import resize_frame, to_model_input

@@ -9,7 +9,8 @@ import torch
 import yaml
 
 from devices.errors import UserError
-from inference.model_config import ModelConfig, config_from_dict, read_config_file, write_config
+from inference.config_files import read_config_file
+from inference.model_config import ModelConfig, config_from_dict, write_config
 from inference.touch_model import TouchAnything
 from inference.vit import load_dinov2_weights
 
@@ -74,7 +75,8 @@ def find_config(checkpoint_path: Path, config_path: Path | None) -> Path:
 
 
 def load_model(checkpoint_path: Path, config_path: Path | None = None) -> TouchAnything:
-    """Load an official or project checkpoint with its config (base + override merged) → model in eval mode.
+    """Load an official or project checkpoint with its `config.yaml` (official structure, `_base_` merged)
+    → model in eval mode.
 
     The backbone weights come from the checkpoint, so the config's `pretrained_path` is not needed.
     """
@@ -89,8 +91,9 @@ def build_model(config: ModelConfig, pretrained: bool = True) -> TouchAnything:
     """A new model; with `pretrained` and a `pretrained_path` in the config, DINOv2 weights are loaded
     from that local file (a missing file is an error, never a silent random backbone)."""
     model = TouchAnything(config)
-    if pretrained and config.pretrained_path:
-        load_dinov2_weights(model.vision_encoder.encoder, Path(config.pretrained_path))
+    weights = config.vision_encoder.pretrained_path
+    if pretrained and weights:
+        load_dinov2_weights(model.vision_encoder.encoder, Path(weights))
     return model
 
 

@@ -11,6 +11,7 @@ from torch.utils.data import Dataset
 
 from devices.episode_loader import open_episode
 from devices.errors import UserError
+from inference.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from inference.pose_encoder import prepare_poses
 from inference.preprocess import resize_frame, to_model_input
 
@@ -32,12 +33,26 @@ class EpisodeArrays:
     normalized: bool
 
 
-def load_episode(path: Path, size: int, pose_source: str) -> EpisodeArrays:
+def episode_poses(episode, pose_source: str, fallback: str | None) -> np.ndarray | None:
+    """Prepared (T, 42, 3) poses from `pose_source`; with a `fallback`, a hand invalid there takes the
+    fallback's joints and validity in that frame (the official per-frame replacement). None: no such stream."""
+    hands = episode.hands(pose_source)
+    if hands is None:
+        return None
+    joints, valid = hands.joints.copy(), hands.valid.copy()
+    other = episode.hands(fallback) if fallback else None
+    if other is not None:
+        replace = ~valid
+        joints[replace], valid[replace] = other.joints[replace], other.valid[replace]
+    return prepare_poses(joints.reshape(episode.num_frames, 42, 3), valid)
+
+
+def load_episode(path: Path, size: int, pose_source: str, fallback: str | None = None) -> EpisodeArrays:
     with open_episode(path) as episode:
         if episode.pressure is None:
             raise UserError(f"{path}: no pressure grids; cannot train on it")
-        hands = episode.hands(pose_source)
-        if hands is None:
+        poses = episode_poses(episode, pose_source, fallback)
+        if poses is None:
             raise UserError(f"{path}: no {pose_source} poses; cannot train on it")
         images = {}
         for view, source in episode.views.items():
@@ -45,7 +60,6 @@ def load_episode(path: Path, size: int, pose_source: str) -> EpisodeArrays:
             if any(f is None for f in frames):
                 raise UserError(f"{path}: view {view} has unreadable frames")
             images[view] = np.stack([resize_frame(f, size) for f in frames])
-        poses = prepare_poses(hands.joints.reshape(episode.num_frames, 42, 3), hands.valid)
         normalized = bool(episode.pressure.attrs.get("normalized", False))
         return EpisodeArrays(Path(path), images, poses, episode.pressure.grids.astype(np.float32), normalized)
 
@@ -63,11 +77,10 @@ class ClipDataset(Dataset):
     """Items: views {name: (T, 3, S, S)}, poses (T, 42, 3), target and mask (T, 2, 21, 21), the episode
     index and the frame indices (T,) — everything a training step and the feature cache need."""
 
-    def __init__(self, files: list[Path], size: int, span: int, clip_length: int, frame_interval: int,
-                 pose_source: str = "wilor") -> None:
-        self.episodes = [load_episode(f, size, pose_source) for f in files]
-        self.offsets = np.arange(clip_length) * frame_interval
-        self.items = [(e, s) for e, ep in enumerate(self.episodes) for s in clip_starts(len(ep.poses), span)]
+    def __init__(self, files: list[Path], size: int, pose_source: str = "wilor", fallback: str | None = None) -> None:
+        self.episodes = [load_episode(f, size, pose_source, fallback) for f in files]
+        self.offsets = np.arange(CLIP_LENGTH) * FRAME_INTERVAL
+        self.items = [(e, s) for e, ep in enumerate(self.episodes) for s in clip_starts(len(ep.poses), SPAN)]
 
     def __len__(self) -> int:
         return len(self.items)

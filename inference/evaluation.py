@@ -21,12 +21,11 @@ from devices.errors import UserError
 from devices.snapshot import VIEW_NAMES
 from devices.tactile_layout import TactileLayout
 from inference.metrics import MetricAccumulator, aggregate, ground_truth_for_metrics
+from inference.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from inference.pose_encoder import prepare_poses
 from inference.preprocess import resize_frame, to_model_input
 from inference.touch_model import TouchAnything
 
-CLIP_LENGTH, FRAME_INTERVAL = 8, 2
-SPAN = (CLIP_LENGTH - 1) * FRAME_INTERVAL + 1
 VIEW_SETS = {"ego": ("ego",), "ego+left": ("ego", "wrist_left"), "ego+right": ("ego", "wrist_right"), "all": VIEW_NAMES}
 
 

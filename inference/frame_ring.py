@@ -11,9 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-CLIP_LENGTH = 8
-FRAME_INTERVAL = 2
-SPAN = (CLIP_LENGTH - 1) * FRAME_INTERVAL + 1
+from inference.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 
 
 @dataclass

@@ -6,7 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from inference.frame_ring import SPAN, CachedFrame
+from inference.frame_ring import CachedFrame
+from inference.model_config import SPAN
 
 
 @dataclass

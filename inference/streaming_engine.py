@@ -16,7 +16,8 @@ import numpy as np
 from devices.snapshot import VIEW_NAMES, Snapshot
 from devices.tactile_layout import TactileLayout
 from inference.engine_config import EngineConfig, make_runtime
-from inference.frame_ring import CLIP_LENGTH, CachedFrame, FrameRing, Window
+from inference.frame_ring import CachedFrame, FrameRing, Window
+from inference.model_config import CLIP_LENGTH
 from inference.pose_encoder import prepare_poses, usable_hands
 from inference.prediction import Prediction
 from inference.preprocess import resize_frame, to_model_input

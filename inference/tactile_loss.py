@@ -1,19 +1,38 @@
-"""The official TactileLoss: contact-weighted masked MSE + 0.5 · L1 + 0.01 · total variation."""
+"""The official TactileLoss: contact-weighted masked MSE + L1 + total variation, weights from `training.loss`."""
 from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
 
 import torch
 
-CONTACT_THRESHOLD, CONTACT_WEIGHT = 0.1, 3.0
-MSE_WEIGHT, L1_WEIGHT, TV_WEIGHT = 1.0, 0.5, 0.01
+from inference.config_sections import limits
+
+WEIGHT = limits(0.0)
 
 
-def tactile_loss(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+@dataclass(frozen=True)
+class TactileLossConfig:
+    """`training.loss` (official names and values): the masked terms are weighted `contact_weight`× where
+    the target exceeds `pressure_threshold`."""
+
+    UNUSED: ClassVar = ("pose_loss_weight", "use_confidence_weighting")  # the pose task's loss settings
+    mse_weight: float = field(default=1.0, metadata=WEIGHT)
+    l1_weight: float = field(default=0.5, metadata=WEIGHT)
+    tv_weight: float = field(default=0.01, metadata=WEIGHT)
+    contact_weight: float = field(default=3.0, metadata=WEIGHT)
+    pressure_threshold: float = field(default=0.1, metadata=limits(0.0, 1.0, high_open=True))
+
+
+def tactile_loss(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor,
+                 weights: TactileLossConfig = TactileLossConfig()) -> torch.Tensor:
     """pred, target, mask: (B, T, 2, 21, 21); mask is 1 at sensor cells. The masked terms divide by the
     number of valid cells (not the weight sum); TV is over the whole prediction, unmasked. The caller skips
     batches whose mask is empty (the division would be 0/0)."""
-    weight = (1.0 + (CONTACT_WEIGHT - 1.0) * (target > CONTACT_THRESHOLD).float()) * mask
+    w = weights
+    weight = (1.0 + (w.contact_weight - 1.0) * (target > w.pressure_threshold).float()) * mask
     count = mask.sum()
     diff = pred - target
-    masked = MSE_WEIGHT * (weight * diff.square()).sum() / count + L1_WEIGHT * (weight * diff.abs()).sum() / count
+    masked = w.mse_weight * (weight * diff.square()).sum() / count + w.l1_weight * (weight * diff.abs()).sum() / count
     tv = (pred[..., 1:, :] - pred[..., :-1, :]).abs().mean() + (pred[..., :, 1:] - pred[..., :, :-1]).abs().mean()
-    return masked + TV_WEIGHT * tv
+    return masked + w.tv_weight * tv

@@ -12,7 +12,7 @@ import torch
 from torch import nn
 
 from inference.fusion import CrossAttentionFusion
-from inference.model_config import ModelConfig
+from inference.model_config import NUM_JOINTS, TACTILE_SIZE, ModelConfig
 from inference.multi_view import MultiViewEncoder
 from inference.pose_encoder import TransformerPoseEncoder
 from inference.tactile_decoder import JointLevelTactileDecoder
@@ -26,15 +26,15 @@ class TouchAnything(nn.Module):
         super().__init__()
         c = config.check()
         self.config = c
-        width = c.embed_dim
-        self.vision_encoder = VisionEncoder(DinoVisionTransformer(BACKBONES[c.backbone]), c.freeze_backbone)
-        self.multi_view_encoder = MultiViewEncoder(self.vision_encoder, width, c.cross_view_heads, c.cross_view_layers,
-                                                   c.mlp_ratio, c.dropout, c.view_dropout)
-        self.temporal_transformer = TemporalTransformer(width, c.temporal_layers, c.temporal_heads, c.mlp_ratio,
-                                                        c.dropout, c.window_size)
-        self.pose_encoder = TransformerPoseEncoder(width, c.pose_layers, c.pose_heads, c.mlp_ratio, c.dropout, c.num_joints)
-        self.fusion = CrossAttentionFusion(width, c.fusion_layers, c.fusion_heads, c.mlp_ratio, c.dropout)
-        self.decoder = JointLevelTactileDecoder(width, c.decoder_channels, c.decoder_dropout, c.tactile_size)
+        width, mv, tt, pe, fu = c.embed_dim, c.multi_view, c.temporal_transformer, c.pose_encoder, c.fusion
+        self.vision_encoder = VisionEncoder(DinoVisionTransformer(BACKBONES[c.backbone]), c.vision_encoder.freeze)
+        self.multi_view_encoder = MultiViewEncoder(self.vision_encoder, width, mv.num_heads, mv.num_cross_layers,
+                                                   mv.mlp_ratio, mv.dropout, mv.view_dropout_prob)
+        self.temporal_transformer = TemporalTransformer(width, tt.num_layers, tt.num_heads, tt.mlp_ratio, tt.dropout,
+                                                        tt.window_size)
+        self.pose_encoder = TransformerPoseEncoder(width, pe.num_layers, pe.num_heads, pe.mlp_ratio, pe.dropout, NUM_JOINTS)
+        self.fusion = CrossAttentionFusion(width, fu.num_layers, fu.num_heads, fu.mlp_ratio, fu.dropout)
+        self.decoder = JointLevelTactileDecoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE)
 
     def forward(self, frames: torch.Tensor | None = None, poses: torch.Tensor | None = None,
                 views: dict[str, torch.Tensor] | None = None,

@@ -1,88 +1,149 @@
-"""Training settings from the `training`, `data` and `system` sections of an official-structure config.
+"""Training settings in the official structure: `training`, `system` and the training part of `data`.
 
-Defaults are the official ones (100 epochs, batch 16, AdamW lr 5e-5 and weight decay 0.05 on every
-parameter, 10 warm-up epochs from 1 % of the rate then cosine to 1e-6, gradient clipping at 1.0, fp32,
-a periodic checkpoint every 5 epochs, seed 42, view dropout 0.3 from the model section).
+Read strictly (every key of the official configs is known; a misspelt one is an error naming it), with the
+official names: `training.{batch_size, num_epochs, save_interval, val_interval}`,
+`training.optimizer.{type: adamw, lr, weight_decay, betas}`, `training.scheduler.{type: cosine, warmup_epochs,
+min_lr}`, `training.loss.{mse_weight, l1_weight, tv_weight, contact_weight, pressure_threshold}`,
+`system.{seed, mixed_precision}`, `data.{pose_source, fallback_pose_source}`. Defaults are the official
+recipe (`touchanything_with_glove_aug_wilor.yaml`). Official keys that do not change this trainer are
+accepted and listed by `TrainConfig.unused` (the `train` command prints them).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
-from devices.errors import UserError
-from inference.model_config import ModelConfig, config_from_dict, config_to_dict, deep_merge, read_config_file
+from devices.errors import UserError, describe
+from inference.config_files import read_config_file
+from inference.config_sections import SectionReader, check_section, limits, section_to_dict
+from inference.model_config import CLIP_LENGTH, FRAME_INTERVAL, ModelConfig, ModelInputConfig, config_to_dict, read_model_config
+from inference.tactile_loss import TactileLossConfig
+
+POSE_SOURCES = ("wilor", "rokoko")
+GRAD_CLIP = 1.0  # the official trainer clips the gradient norm at 1.0 (not a config key)
+
+
+@dataclass(frozen=True)
+class OptimizerConfig:
+    FIXED: ClassVar = {"type": "adamw"}
+    lr: float = field(default=5e-5, metadata=limits(0.0))
+    weight_decay: float = field(default=0.05, metadata=limits(0.0))
+    betas: tuple[float, float] = field(default=(0.9, 0.999), metadata=limits(0.0, 1.0, high_open=True))
+
+
+@dataclass(frozen=True)
+class SchedulerConfig:
+    """Linear warm-up from 1 % of `lr` over `warmup_epochs`, then cosine to `min_lr`; stepped per epoch."""
+
+    FIXED: ClassVar = {"type": "cosine"}
+    warmup_epochs: int = field(default=10, metadata=limits(0))
+    min_lr: float = field(default=1e-6, metadata=limits(0.0))
+
+
+@dataclass(frozen=True)
+class TrainingConfig:
+    FIXED: ClassVar = {"invalid_pose_policy": "keep"}
+    UNUSED: ClassVar = ("num_workers", "gradient_accumulation_steps", "keep_last_n", "log_interval",
+                        "pose_valid_joint_ratio_threshold")
+    batch_size: int = field(default=16, metadata=limits(1))
+    num_epochs: int = field(default=100, metadata=limits(1))
+    save_interval: int = field(default=5, metadata=limits(1))
+    val_interval: int = field(default=1, metadata=limits(1))
+    optimizer: OptimizerConfig = OptimizerConfig()
+    scheduler: SchedulerConfig = SchedulerConfig()
+    loss: TactileLossConfig = TactileLossConfig()
+
+
+@dataclass(frozen=True)
+class SystemConfig:
+    UNUSED: ClassVar = ("device", "gpu_ids", "cudnn_benchmark")
+    seed: int = 42
+    mixed_precision: bool = False
+
+
+@dataclass(frozen=True)
+class TrainingDataConfig:
+    """The training part of `data`; the model's input keys are read by `ModelInputConfig`."""
+
+    FIXED: ClassVar = {"use_augmentation": False, "random_crop": False, "random_flip": False}
+    UNUSED: ClassVar = ("dataset", "data_root", "split_file", "mapping_left", "mapping_right", "train_split",
+                        "val_split", "test_split", "use_camera_frame", "joint_set", "color_jitter", "glove_augmentation")
+    ELSEWHERE: ClassVar = ("image_size", *ModelInputConfig.FIXED)
+    pose_source: str = "wilor"
+    fallback_pose_source: str | None = None
 
 
 @dataclass(frozen=True)
 class TrainConfig:
-    model: ModelConfig
-    epochs: int = 100
-    batch_size: int = 16
-    learning_rate: float = 5e-5
-    weight_decay: float = 0.05
-    warmup_epochs: int = 10
-    min_lr: float = 1e-6
-    grad_clip: float = 1.0
-    save_every: int = 5
-    seed: int = 42
-    mixed_precision: bool = False
-    pose_source: str = "wilor"
-    clip_length: int = 8
-    frame_interval: int = 2
+    """A whole training run: the model, `training`, `system`, the training part of `data`."""
 
-    def check(self) -> "TrainConfig":
-        positive = {"epochs": self.epochs, "batch_size": self.batch_size, "learning_rate": self.learning_rate,
-                    "save_every": self.save_every, "clip_length": self.clip_length, "frame_interval": self.frame_interval}
-        for name, value in positive.items():
-            if not value > 0:
-                raise UserError(f"training setting {name} must be positive, got {value}")
-        if not 0 <= self.warmup_epochs <= self.epochs:
-            raise UserError(f"warmup_epochs must be within 0–epochs, got {self.warmup_epochs}")
-        if self.pose_source not in ("wilor", "rokoko"):
-            raise UserError(f"pose_source must be wilor or rokoko, got {self.pose_source!r}")
-        if self.clip_length > self.model.window_size:
-            raise UserError(f"clip_length {self.clip_length} exceeds the temporal window {self.model.window_size}")
+    model: ModelConfig = ModelConfig()
+    training: TrainingConfig = TrainingConfig()
+    system: SystemConfig = SystemConfig()
+    data: TrainingDataConfig = TrainingDataConfig()
+    unused: tuple[str, ...] = field(default=(), compare=False)
+
+    def check(self, source: str = "config") -> "TrainConfig":
+        self.model.check(source)
+        check_section(self.training, "training", source)
+        warmup, epochs = self.training.scheduler.warmup_epochs, self.training.num_epochs
+        if warmup > epochs:
+            raise UserError(describe(source, "training.scheduler.warmup_epochs", f"{warmup} exceeds num_epochs {epochs}"))
+        primary, fallback = self.data.pose_source, self.data.fallback_pose_source
+        if primary not in POSE_SOURCES:
+            raise UserError(describe(source, "data.pose_source", f"must be wilor or rokoko, got {primary!r}"))
+        if fallback not in (None, *POSE_SOURCES) or fallback == primary:
+            raise UserError(describe(source, "data.fallback_pose_source",
+                                     f"must be null or the other pose source, got {fallback!r}"))
         return self
 
-    @property
-    def span(self) -> int:
-        return (self.clip_length - 1) * self.frame_interval + 1
+
+SECTIONS = {"training": TrainingConfig, "system": SystemConfig, "data": TrainingDataConfig}
+OTHER_SECTIONS = {"model", "evaluation"}  # read by the model reader / not used by training
+
+
+def train_config_from_dict(data: dict, source: str = "config") -> TrainConfig:
+    reader = SectionReader(source)
+    for key in data:
+        if key not in SECTIONS and key not in OTHER_SECTIONS:
+            raise reader.error(key, "unknown section (the official structure has model, data, training, evaluation, system)")
+    if "evaluation" in data:
+        reader.unused.append("evaluation")
+    model = read_model_config(data, reader)
+    sections = {name: reader.read(cls, data.get(name), name) for name, cls in SECTIONS.items()}
+    return TrainConfig(model=model, **sections, unused=tuple(reader.unused)).check(source)
 
 
 def train_config_from_file(path: Path) -> TrainConfig:
-    """Read a training config (a `base.yaml` beside it is merged underneath)."""
-    data = read_config_file(path)
-    training, system, data_section = data.get("training") or {}, data.get("system") or {}, data.get("data") or {}
-    d = TrainConfig(ModelConfig())
-    try:
-        config = TrainConfig(
-            model=config_from_dict(data, str(path)),
-            epochs=int(training.get("epochs", d.epochs)),
-            batch_size=int(training.get("batch_size", d.batch_size)),
-            learning_rate=float(training.get("learning_rate", training.get("lr", d.learning_rate))),
-            weight_decay=float(training.get("weight_decay", d.weight_decay)),
-            warmup_epochs=int(training.get("warmup_epochs", d.warmup_epochs)),
-            min_lr=float(training.get("min_lr", d.min_lr)),
-            grad_clip=float(training.get("grad_clip", d.grad_clip)),
-            save_every=int(training.get("save_every", d.save_every)),
-            seed=int(training.get("seed", d.seed)),
-            mixed_precision=bool(system.get("mixed_precision", d.mixed_precision)),
-            pose_source=str(data_section.get("pose_source", d.pose_source)),
-            clip_length=int(data_section.get("clip_length", d.clip_length)),
-            frame_interval=int(data_section.get("frame_interval", d.frame_interval)),
-        )
-    except (TypeError, ValueError) as exc:
-        raise UserError(f"{path}: a training setting has the wrong type ({exc})") from None
-    return config.check()
+    """Read a training config (its `_base_` chain merged underneath, as the official loader does)."""
+    return train_config_from_dict(read_config_file(path), str(path))
 
 
 def train_config_to_dict(config: TrainConfig) -> dict:
-    """The full config (model, data, training, system) as written beside checkpoints."""
-    c = config
-    return deep_merge(config_to_dict(c.model), {
-        "data": {"clip_length": c.clip_length, "frame_interval": c.frame_interval, "pose_source": c.pose_source},
-        "training": {"epochs": c.epochs, "batch_size": c.batch_size, "learning_rate": c.learning_rate,
-                     "weight_decay": c.weight_decay, "warmup_epochs": c.warmup_epochs, "min_lr": c.min_lr,
-                     "grad_clip": c.grad_clip, "save_every": c.save_every, "seed": c.seed},
-        "system": {"mixed_precision": c.mixed_precision},
-    })
+    """The whole config in the official structure, as written beside checkpoints (`config.yaml`)."""
+    out = config_to_dict(config.model)
+    out["data"].update(section_to_dict(config.data))
+    return {**out, "training": section_to_dict(config.training), "system": section_to_dict(config.system)}
+
+
+def describe_settings(config: TrainConfig) -> list[str]:
+    """The effective settings, a few lines, printed at the start of a run."""
+    m, t, o, s, loss = config.model, config.training, config.training.optimizer, config.training.scheduler, config.training.loss
+    lines = [
+        f"model: {m.backbone} at {m.image_size} px (backbone {'frozen' if m.vision_encoder.freeze else 'trained'}"
+        f"{', weights ' + m.vision_encoder.pretrained_path if m.vision_encoder.pretrained_path else ''}), "
+        f"temporal {m.temporal_transformer.num_layers}×{m.temporal_transformer.num_heads} heads, "
+        f"cross-view {m.multi_view.num_cross_layers}, pose {m.pose_encoder.num_layers}, fusion {m.fusion.num_layers}, "
+        f"decoder {m.tactile_decoder.conv_channels} channels; view dropout {m.multi_view.view_dropout_prob}",
+        f"training: {t.num_epochs} epochs, batch {t.batch_size}, AdamW lr {o.lr:g} weight decay {o.weight_decay:g} "
+        f"betas ({o.betas[0]:g}, {o.betas[1]:g}), {s.warmup_epochs} warm-up epochs then cosine to {s.min_lr:g}, "
+        f"gradient clip {GRAD_CLIP:g}, {'mixed precision' if config.system.mixed_precision else 'fp32'}, seed {config.system.seed}",
+        f"loss: mse {loss.mse_weight:g} + l1 {loss.l1_weight:g} (×{loss.contact_weight:g} above {loss.pressure_threshold:g}) "
+        f"+ tv {loss.tv_weight:g}; clips of {CLIP_LENGTH} frames at interval {FRAME_INTERVAL}; poses {config.data.pose_source}"
+        f"{' falling back to ' + config.data.fallback_pose_source if config.data.fallback_pose_source else ''}; "
+        f"validation every {t.val_interval} epoch(s), a checkpoint every {t.save_interval}",
+    ]
+    if config.unused:
+        lines.append("accepted, not used by this trainer: " + ", ".join(config.unused))
+    return lines

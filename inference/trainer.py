@@ -25,8 +25,9 @@ from devices.errors import UserError
 from inference.checkpoint import build_model, load_state, model_state, read_checkpoint, save_checkpoint
 from inference.clip_dataset import ClipDataset
 from inference.feature_cache import FeatureCache
+from inference.model_config import SPAN
 from inference.tactile_loss import tactile_loss
-from inference.train_config import TrainConfig, train_config_to_dict
+from inference.train_config import GRAD_CLIP, TrainConfig, train_config_to_dict
 
 LAST, BEST = "last.pth", "best_model.pth"
 
@@ -60,12 +61,12 @@ def _distributed() -> tuple[int, int, torch.device]:
 
 def _schedule(optimizer, config: TrainConfig):
     """Linear warm-up from 1 % to the full rate, then cosine to `min_lr`; stepped once per epoch."""
-    cosine = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, T_max=max(config.epochs - config.warmup_epochs, 1),
-                                                        eta_min=config.min_lr)
-    if config.warmup_epochs == 0:
+    epochs, s = config.training.num_epochs, config.training.scheduler
+    cosine = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, T_max=max(epochs - s.warmup_epochs, 1), eta_min=s.min_lr)
+    if s.warmup_epochs == 0:
         return cosine
-    warmup = torch.optim.lr_scheduler.LinearLR(optimizer, 0.01, 1.0, total_iters=config.warmup_epochs)
-    return torch.optim.lr_scheduler.SequentialLR(optimizer, [warmup, cosine], milestones=[config.warmup_epochs])
+    warmup = torch.optim.lr_scheduler.LinearLR(optimizer, 0.01, 1.0, total_iters=s.warmup_epochs)
+    return torch.optim.lr_scheduler.SequentialLR(optimizer, [warmup, cosine], milestones=[s.warmup_epochs])
 
 
 def _files(data: Path, split_file: Path | None, key: str) -> list[Path]:
@@ -81,25 +82,27 @@ class Trainer:
                  log: Callable[[str], None] = print) -> None:
         self.config, self.out, self.log = config.check(), Path(out), log
         self.rank, self.world, self.device = _distributed()
-        torch.manual_seed(config.seed + self.rank)
-        random.seed(config.seed + self.rank)
-        np.random.seed(config.seed + self.rank)
+        seed = config.system.seed + self.rank
+        torch.manual_seed(seed)
+        random.seed(seed)
+        np.random.seed(seed)
         c = config.model
         train_files = _files(data, split_file, "train")
         if not train_files:
             raise UserError("the split's train list is empty")
-        dataset = lambda files: ClipDataset(files, c.image_size, config.span, config.clip_length, config.frame_interval, config.pose_source)
+        dataset = lambda files: ClipDataset(files, c.image_size, config.data.pose_source, config.data.fallback_pose_source)
         self.train_set = dataset(train_files)
         self.val_set = dataset(_files(data, split_file, "val"))
         if len(self.train_set) == 0:
-            raise UserError(f"no training clips: every train trajectory is shorter than {config.span} frames")
+            raise UserError(f"no training clips: every train trajectory is shorter than {SPAN} frames")
         self.model = build_model(c).to(self.device)
         self.net = DistributedDataParallel(self.model, find_unused_parameters=True) if self.world > 1 else self.model
         params = [p for p in self.model.parameters() if p.requires_grad]
-        self.optimizer = torch.optim.AdamW(params, lr=config.learning_rate, weight_decay=config.weight_decay)
+        o = config.training.optimizer
+        self.optimizer = torch.optim.AdamW(params, lr=o.lr, weight_decay=o.weight_decay, betas=o.betas)
         self.scheduler = _schedule(self.optimizer, config)
-        self.scaler = torch.amp.GradScaler("cuda", enabled=config.mixed_precision and self.device.type == "cuda")
-        self.cache = FeatureCache() if c.freeze_backbone else None
+        self.scaler = torch.amp.GradScaler("cuda", enabled=config.system.mixed_precision and self.device.type == "cuda")
+        self.cache = FeatureCache() if c.vision_encoder.freeze else None
         self.result = TrainResult()
         self.start_epoch = 0
 
@@ -116,17 +119,17 @@ class Trainer:
 
     def _loader(self, dataset: ClipDataset, shuffle: bool, epoch: int) -> DataLoader:
         if self.world > 1:
-            sampler = DistributedSampler(dataset, shuffle=shuffle, seed=self.config.seed)
+            sampler = DistributedSampler(dataset, shuffle=shuffle, seed=self.config.system.seed)
             sampler.set_epoch(epoch)
         else:
-            generator = torch.Generator().manual_seed(self.config.seed + epoch)
+            generator = torch.Generator().manual_seed(self.config.system.seed + epoch)
             sampler = RandomSampler(dataset, generator=generator) if shuffle else None
-        return DataLoader(dataset, batch_size=self.config.batch_size, sampler=sampler)
+        return DataLoader(dataset, batch_size=self.config.training.batch_size, sampler=sampler)
 
     def _forward(self, batch: dict) -> torch.Tensor:
         poses = batch["poses"].to(self.device)
         autocast = torch.autocast(self.device.type, dtype=torch.bfloat16 if self.device.type == "cpu" else torch.float16,
-                                  enabled=self.config.mixed_precision)
+                                  enabled=self.config.system.mixed_precision)
         with autocast:
             if self.cache is not None:
                 tokens = self.cache.tokens(self.model.vision_encoder, batch["views"], batch["episode"], batch["frames"], self.device)
@@ -153,7 +156,7 @@ class Trainer:
     def _train_epoch(self, epoch: int) -> float:
         self.net.train()
         losses, clips, started = [], 0, time.perf_counter()
-        bar = tqdm(self._loader(self.train_set, True, epoch), desc=f"epoch {epoch + 1}/{self.config.epochs}",
+        bar = tqdm(self._loader(self.train_set, True, epoch), desc=f"epoch {epoch + 1}/{self.config.training.num_epochs}",
                    unit="batch", disable=self.rank != 0, leave=False)
         for step, batch in enumerate(bar, start=1):
             mask = batch["mask"].to(self.device)
@@ -162,12 +165,12 @@ class Trainer:
                 continue
             pred = self._forward(batch)
             self.result.view_sets["+".join(self.model.multi_view_encoder.last_kept)] += 1
-            loss = tactile_loss(pred, batch["target"].to(self.device), mask)
+            loss = tactile_loss(pred, batch["target"].to(self.device), mask, self.config.training.loss)
             self._check_loss(loss, epoch, step, batch)
             self.optimizer.zero_grad(set_to_none=True)
             self.scaler.scale(loss).backward()
             self.scaler.unscale_(self.optimizer)
-            torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
+            torch.nn.utils.clip_grad_norm_(self.model.parameters(), GRAD_CLIP)
             self.scaler.step(self.optimizer)
             self.scaler.update()
             self._check_weights(epoch, step, batch)
@@ -185,7 +188,7 @@ class Trainer:
             mask = batch["mask"].to(self.device)
             if mask.sum() == 0:
                 continue
-            total += tactile_loss(self._forward(batch), batch["target"].to(self.device), mask).item()
+            total += tactile_loss(self._forward(batch), batch["target"].to(self.device), mask, self.config.training.loss).item()
             count += 1
         if self.world > 1:
             sums = torch.tensor([total, count], dtype=torch.float64, device=self.device)
@@ -198,24 +201,30 @@ class Trainer:
         save_checkpoint(self.out / name, self.model, epoch=epoch, optimizer=self.optimizer, scheduler=self.scheduler,
                         loss=loss, metrics=metrics, config=train_config_to_dict(self.config))
 
+    def _validates(self, done: int) -> bool:
+        """Validation runs every `val_interval` epochs and after the last one."""
+        return done % self.config.training.val_interval == 0 or done == self.config.training.num_epochs
+
     def fit(self) -> TrainResult:
-        """Train from `start_epoch` to the configured number of epochs."""
-        for epoch in range(self.start_epoch, self.config.epochs):
+        """Train from `start_epoch` to the configured number of epochs. The best checkpoint is judged on
+        validated epochs only (by the training loss when there are no validation clips)."""
+        for epoch in range(self.start_epoch, self.config.training.num_epochs):
+            done = epoch + 1
             train_loss = self._train_epoch(epoch)
-            val_loss = self._validate()
+            validated = self._validates(done)
+            val_loss = self._validate() if validated else math.nan
             self.result.train_loss.append(train_loss)
             self.result.val_loss.append(val_loss)
-            monitored = val_loss if math.isfinite(val_loss) else train_loss  # no validation clips: train loss
-            improved = math.isfinite(monitored) and monitored < self.result.best_val_loss
+            monitored = val_loss if math.isfinite(val_loss) else train_loss
+            improved = validated and math.isfinite(monitored) and monitored < self.result.best_val_loss
             if improved:
                 self.result.best_val_loss = monitored
             self.scheduler.step()
             if self.rank == 0:
-                done = epoch + 1
                 self._save(LAST, done, train_loss)
                 if improved:
                     self._save(BEST, done, monitored)
-                if done % self.config.save_every == 0:
+                if done % self.config.training.save_interval == 0:
                     self._save(f"checkpoint_epoch_{done}.pth", done, train_loss)
                 self.log(f"epoch {done}: train loss {train_loss:.4f}, val loss {val_loss:.4f}, "
                          f"lr {self.optimizer.param_groups[0]['lr']:.2e}, {self.result.clips_per_second:.1f} clips/s"

@@ -1,6 +1,8 @@
 """TouchAnything model: official state_dict names, strict official-format loading, numerics at the extremes."""
 from __future__ import annotations
 
+import shutil
+
 import numpy as np
 import pytest
 import torch
@@ -9,7 +11,7 @@ import yaml
 
 from devices.errors import UserError
 from inference.checkpoint import build_model, load_model, save_checkpoint
-from inference.model_config import PRESETS, ModelConfig, config_from_dict, read_config_file
+from inference.model_config import PRESETS, ModelConfig, with_backbone
 from inference.pose_encoder import prepare_poses
 from inference.preprocess import to_model_input
 from inference.touch_model import TouchAnything
@@ -71,30 +73,23 @@ def test_paper_state_dict_has_the_official_names_and_counts(paper_model):
     assert torch.equal(state["pose_encoder.pose_offset"], torch.tensor([0.0, 0.0, 50.0]))
 
 
-def test_official_checkpoint_with_base_config_loads_strictly_and_reproduces(paper_model, tmp_path):
-    folder = tmp_path / "checkpoints"
+def test_official_checkpoint_with_the_config_official_train_writes_loads_and_reproduces(paper_model, official_dir, tmp_path):
+    """An official `best_model.pth` (DDP `module.` prefixes) with the `config.yaml` the official train.py
+    writes beside it (`_base_` still in it, no base.yaml there) loads strictly and gives the same outputs."""
+    folder = tmp_path / "20250101_000000_dinov2_vitb14_tactile_prediction_touchanything_with_glove_aug_wilor"
     folder.mkdir()
     torch.save({"epoch": 12, "model_state_dict": {f"module.{k}": v for k, v in paper_model.state_dict().items()},
                 "optimizer_state_dict": {}, "scheduler_state_dict": {}, "loss": 0.1, "metrics": {"val_loss": 0.1}},
                folder / "best_model.pth")
-    base = {"model": {"vision": {"backbone": "dinov2_vitb14", "embed_dim": 768, "freeze": True},
-                      "temporal": {"num_layers": 3, "num_heads": 8, "hidden_dim": 512}, "pose_decoder": {"x": 1}},
-            "system": {"mixed_precision": True}}
-    override = {"model": {"vision": {"pretrained_path": "$HOME/models/dinov2/does_not_exist.pth"},
-                          "multi_view": {"enabled": True, "num_cross_layers": 2, "view_dropout_prob": 0.3}},
-                "system": {"mixed_precision": False}}
-    (folder / "base.yaml").write_text(yaml.safe_dump(base))
-    (folder / "config.yaml").write_text(yaml.safe_dump(override))
-    merged = read_config_file(folder / "config.yaml")
-    assert merged["model"]["temporal"]["num_layers"] == 3 and merged["system"]["mixed_precision"] is False
-    assert "$HOME" not in merged["model"]["vision"]["pretrained_path"]
+    shutil.copy(official_dir / "configs" / "config_saved_by_official_train.yaml", folder / "config.yaml")
     loaded = load_model(folder / "best_model.pth")
-    assert not loaded.training
-    frames, poses = _inputs(PRESETS["paper"], views=("ego", "wrist_right"), size=112)
-    with torch.no_grad():
-        expected = paper_model(poses=poses, views=frames)["tactile"]
-        got = loaded(poses=poses, views=frames)["tactile"]
-    assert torch.equal(expected, got)
+    assert not loaded.training and loaded.config == with_backbone(PRESETS["paper"], pretrained_path="models/dinov2/dinov2_vitb14_pretrain.pth")
+    for views in (("ego",), ("ego", "wrist_left"), ("ego", "wrist_right"), VIEWS):
+        frames, poses = _inputs(PRESETS["paper"], views=views, size=112)
+        with torch.no_grad():
+            expected = paper_model(poses=poses, views=frames)["tactile"]
+            got = loaded(poses=poses, views=frames)["tactile"]
+        assert torch.equal(expected, got), views
 
 
 def test_project_checkpoint_round_trip_fp16(tiny_model, tmp_path):
@@ -110,7 +105,7 @@ def test_project_checkpoint_round_trip_fp16(tiny_model, tmp_path):
 def test_checkpoint_for_another_preset_is_named(tiny_model, tmp_path):
     save_checkpoint(tmp_path / "tiny" / "m.pth", tiny_model)
     (tmp_path / "small").mkdir()
-    (tmp_path / "small" / "config.yaml").write_text(yaml.safe_dump({"model": {"vision": {"backbone": "dinov2_vits14"}}}))
+    (tmp_path / "small" / "config.yaml").write_text(yaml.safe_dump({"model": {"vision_encoder": {"model_name": "dinov2_vits14"}}}))
     with pytest.raises(UserError, match="another preset"):
         load_model(tmp_path / "tiny" / "m.pth", tmp_path / "small" / "config.yaml")
     state = torch.load(tmp_path / "tiny" / "m.pth", weights_only=True)
@@ -138,10 +133,6 @@ def test_missing_config_and_bad_config(tmp_path, tiny_model):
     (tmp_path / "config.yaml").write_text("model: [unclosed\n")
     with pytest.raises(UserError, match="not a readable YAML"):
         load_model(tmp_path / "m.pth")
-    with pytest.raises(UserError, match="unknown backbone"):
-        config_from_dict({"model": {"vision": {"backbone": "resnet50"}}})
-    with pytest.raises(UserError, match="multiple of 14"):
-        config_from_dict({"model": {"vision": {"image_size": 100}}})
 
 
 def _official_dinov2_state(spec) -> dict:
@@ -165,7 +156,7 @@ def _official_dinov2_state(spec) -> dict:
 def test_dinov2_weights_load_strictly_from_official_names(tmp_path):
     state = _official_dinov2_state(BACKBONES["dinov2_vits14"])
     torch.save(state, tmp_path / "dinov2_vits14_pretrain.pth")
-    config = ModelConfig(backbone="dinov2_vits14", image_size=168, pretrained_path=str(tmp_path / "dinov2_vits14_pretrain.pth"))
+    config = with_backbone(PRESETS["small"], pretrained_path=str(tmp_path / "dinov2_vits14_pretrain.pth"))
     model = build_model(config)
     assert torch.equal(model.vision_encoder.encoder.pos_embed, state["pos_embed"])
     assert model.multi_view_encoder.vision_encoder.encoder is model.vision_encoder.encoder
@@ -173,7 +164,7 @@ def test_dinov2_weights_load_strictly_from_official_names(tmp_path):
     with pytest.raises(UserError, match="do not match"):
         load_dinov2_weights(vit, tmp_path / "dinov2_vits14_pretrain.pth")
     with pytest.raises(UserError, match="not found"):
-        build_model(ModelConfig(pretrained_path=str(tmp_path / "absent.pth")))
+        build_model(with_backbone(ModelConfig(), pretrained_path=str(tmp_path / "absent.pth")))
 
 
 def test_position_embedding_interpolation_matches_dinov2():

@@ -27,7 +27,9 @@ LAYOUT = TactileLayout.default()
 def model() -> TouchAnything:
     """nano with two temporal layers, so the head runs a full layer before the output-only last one."""
     torch.manual_seed(3)
-    return TouchAnything(dataclasses.replace(preset("nano"), temporal_layers=2)).eval()
+    nano = preset("nano")
+    deeper = dataclasses.replace(nano.temporal_transformer, num_layers=2)
+    return TouchAnything(dataclasses.replace(nano, temporal_transformer=deeper)).eval()
 
 
 def random_stream(size: int, frames: int, seed: int = 0, valid: np.ndarray | None = None) -> dict:

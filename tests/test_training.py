@@ -7,7 +7,6 @@ import shutil
 import socket
 import subprocess
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import h5py
@@ -19,18 +18,24 @@ import yaml
 from app.cli import main
 from devices.errors import UserError
 from inference.checkpoint import load_model, read_checkpoint
-from inference.clip_dataset import clip_starts, prepare_target
-from inference.model_config import PRESETS
+from devices.episode_loader import open_episode
+from inference.clip_dataset import clip_starts, episode_poses, prepare_target
+from inference.model_config import PRESETS, with_backbone
+from inference.tactile_loss import TactileLossConfig, tactile_loss
 from inference.touch_model import TouchAnything
-from inference.train_config import TrainConfig, train_config_from_file
+from inference.train_config import (OptimizerConfig, SchedulerConfig, SystemConfig, TrainConfig, TrainingConfig,
+                                    train_config_from_file)
 from inference.trainer import Trainer, TrainingError
 
-TINY = replace(PRESETS["tiny"], freeze_backbone=False)
+TINY = with_backbone(PRESETS["tiny"], freeze=False)
 
 
-def config(**kw) -> TrainConfig:
-    base = dict(model=TINY, epochs=2, batch_size=4, learning_rate=1e-3, warmup_epochs=1, save_every=1, seed=3)
-    return TrainConfig(**{**base, **kw})
+def config(model=TINY, epochs: int = 2, batch_size: int = 4, lr: float = 1e-3, warmup_epochs: int = 1,
+           val_interval: int = 1) -> TrainConfig:
+    """A short run: periodic checkpoints every epoch, seed 3."""
+    training = TrainingConfig(batch_size=batch_size, num_epochs=epochs, save_interval=1, val_interval=val_interval,
+                              optimizer=OptimizerConfig(lr=lr), scheduler=SchedulerConfig(warmup_epochs=warmup_epochs))
+    return TrainConfig(model=model, training=training, system=SystemConfig(seed=3))
 
 
 @pytest.fixture
@@ -74,7 +79,7 @@ def test_train_checkpoint_resume_and_eval(data, tmp_path, capsys):
     assert resumed.optimizer.param_groups[0]["lr"] == pytest.approx(lrs[0])
     assert len(resumed.result.train_loss) == 1
     written = train_config_from_file(tmp_path / "run" / "config.yaml")
-    assert written.model == TINY and written.epochs == 3 and written.learning_rate == 1e-3
+    assert written == config(epochs=3)
     model = load_model(tmp_path / "run" / "best_model.pth")
     assert isinstance(model, TouchAnything) and not model.training
     assert main(["eval", "--checkpoint", str(tmp_path / "run" / "best_model.pth"), "--data", str(data),
@@ -82,8 +87,42 @@ def test_train_checkpoint_resume_and_eval(data, tmp_path, capsys):
     assert "| ego+left | overall |" in capsys.readouterr().out
 
 
+def test_validation_interval_and_optimizer_settings(data, tmp_path):
+    trainer = Trainer(config(epochs=3, val_interval=2), data, tmp_path / "interval", log=lambda _: None)
+    assert trainer.optimizer.param_groups[0]["betas"] == (0.9, 0.999)
+    result = trainer.fit()
+    validated = [np.isfinite(v) for v in result.val_loss]
+    assert validated == [False, True, True]  # epoch 2 by the interval, epoch 3 as the last
+    assert result.best_val_loss == min(result.val_loss[1:])
+
+
+def test_loss_weights_come_from_the_training_config():
+    g = torch.Generator().manual_seed(0)
+    pred, target = torch.rand(2, 8, 2, 21, 21, generator=g), torch.rand(2, 8, 2, 21, 21, generator=g)
+    mask = (torch.rand(2, 8, 2, 21, 21, generator=g) > 0.3).float()
+    plain = TactileLossConfig(l1_weight=0.0, tv_weight=0.0, contact_weight=1.0)
+    assert torch.allclose(tactile_loss(pred, target, mask, plain), ((pred - target) ** 2 * mask).sum() / mask.sum())
+    official = tactile_loss(pred, target, mask)
+    weight = (1 + 2 * (target > 0.1).float()) * mask
+    tv = (pred[..., 1:, :] - pred[..., :-1, :]).abs().mean() + (pred[..., :, 1:] - pred[..., :, :-1]).abs().mean()
+    by_hand = (weight * (pred - target) ** 2).sum() / mask.sum() + 0.5 * (weight * (pred - target).abs()).sum() / mask.sum() + 0.01 * tv
+    assert torch.allclose(official, by_hand)
+
+
+def test_a_fallback_pose_source_fills_the_invalid_hands(episode_dir):
+    with open_episode(episode_dir) as episode:
+        wilor, rokoko = episode.wilor, episode.rokoko
+        only = episode_poses(episode, "wilor", None)
+        filled = episode_poses(episode, "wilor", "rokoko")
+    missing = ~wilor.valid
+    assert missing.any() and rokoko.valid[missing].all()
+    hands_only, hands_filled = only.reshape(-1, 2, 21, 3), filled.reshape(-1, 2, 21, 3)
+    assert np.all(hands_only[missing] == -10.0)
+    assert np.allclose(hands_filled[missing], rokoko.joints[missing]) and np.array_equal(hands_filled[~missing], hands_only[~missing])
+
+
 def test_loss_decreases_on_a_fixed_tiny_set(data, tmp_path):
-    trainer = Trainer(config(epochs=12, warmup_epochs=0, learning_rate=2e-3), data, tmp_path / "fit", log=lambda _: None)
+    trainer = Trainer(config(epochs=12, warmup_epochs=0, lr=2e-3), data, tmp_path / "fit", log=lambda _: None)
     result = trainer.fit()
     assert result.train_loss[-1] < 0.7 * result.train_loss[0]
 
@@ -114,13 +153,13 @@ def test_nan_guard_names_the_step_and_episode(data, tmp_path):
         trainer.fit()
     message = str(err.value)
     assert "non-finite loss" in message and "epoch 1, step 1" in message and ".hdf5" in message
-    exploding = Trainer(config(learning_rate=1e30, warmup_epochs=0, grad_clip=1e30), data, tmp_path / "boom", log=lambda _: None)
+    exploding = Trainer(config(lr=1e30, warmup_epochs=0), data, tmp_path / "boom", log=lambda _: None)
     with pytest.raises(TrainingError, match="non-finite"):
         exploding.fit()
 
 
 def test_frozen_backbone_features_are_cached_after_the_first_epoch(data, tmp_path):
-    trainer = Trainer(config(model=replace(TINY, freeze_backbone=True)), data, tmp_path / "frozen", log=lambda _: None)
+    trainer = Trainer(config(model=with_backbone(TINY, freeze=True)), data, tmp_path / "frozen", log=lambda _: None)
     trainer.fit()
     frames = sum(len(clip_starts(len(e.poses), 15)) * 8 for e in trainer.train_set.episodes)
     views = len(trainer.train_set.episodes[0].images)
@@ -140,15 +179,6 @@ def test_empty_mask_clips_are_skipped_and_zero_pressure_trains(data, tmp_path):
     assert result.skipped_batches > 0 and np.isfinite(result.train_loss[0])
 
 
-def test_bad_training_settings(tmp_path):
-    (tmp_path / "c.yaml").write_text(yaml.safe_dump({"training": {"epochs": 0}}))
-    with pytest.raises(UserError, match="epochs must be positive"):
-        train_config_from_file(tmp_path / "c.yaml")
-    (tmp_path / "c.yaml").write_text(yaml.safe_dump({"training": {"epochs": 2, "warmup_epochs": 5}}))
-    with pytest.raises(UserError, match="warmup_epochs"):
-        train_config_from_file(tmp_path / "c.yaml")
-
-
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -157,13 +187,14 @@ def _free_port() -> int:
 
 def test_ddp_with_two_cpu_processes(data, tmp_path):
     cfg = tmp_path / "ddp.yaml"
-    cfg.write_text(yaml.safe_dump({"model": {"vision": {"backbone": "vit_t14", "image_size": 112, "freeze": False},
-                                             "temporal": {"num_layers": 1, "num_heads": 4},
+    cfg.write_text(yaml.safe_dump({"model": {"vision_encoder": {"model_name": "vit_t14", "freeze": False},
+                                             "temporal_transformer": {"num_layers": 1, "num_heads": 4},
                                              "multi_view": {"num_cross_layers": 1, "num_heads": 4},
                                              "pose_encoder": {"num_layers": 1, "num_heads": 4},
                                              "fusion": {"num_layers": 1, "num_heads": 4},
                                              "tactile_decoder": {"conv_channels": 64}},
-                                   "training": {"epochs": 1, "batch_size": 2, "warmup_epochs": 0}}))
+                                   "data": {"image_size": [112, 112]},
+                                   "training": {"num_epochs": 1, "batch_size": 2, "scheduler": {"warmup_epochs": 0}}}))
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MASTER_ADDR": "127.0.0.1"}
     command = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_addr", "127.0.0.1",
                "--master_port", str(_free_port()), "-m", "app.cli", "train", "--config", str(cfg), "--data", str(data),
