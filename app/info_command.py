@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,9 @@ from devices.raw_episode import is_raw_episode
 from devices.snapshot import HANDS, TRACKER_ROLES
 from devices.tactile_layout import TactileLayout
 from inference.metrics import contact_frames
+
+ROOT_PROBLEMS_SHOWN = 3
+"""Problems listed per trajectory in a dataset root's summary (the rest are counted)."""
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -65,8 +69,14 @@ def episode_lines(episode: Episode) -> list[str]:
         lines.append("trackers  " + ", ".join(f"{r} {_percent(episode.trackers.valid[:, i])}" for i, r in enumerate(TRACKER_ROLES)))
     lines += pressure_lines(episode)
     lines.append(f"problems  {len(episode.problems) or 'none'}")
-    lines += [f"  - {p}" for p in episode.problems]
-    return lines
+    return lines + problem_lines(episode.problems, "  ")
+
+
+def problem_lines(problems: list[str], indent: str, limit: int | None = None) -> list[str]:
+    """One `- problem` line each; with a `limit`, the first `limit` and then "… and N more"."""
+    shown = problems[:limit]
+    more = [f"{indent}… and {len(problems) - len(shown)} more"] if len(problems) > len(shown) else []
+    return [f"{indent}- {p}" for p in shown] + more
 
 
 def _root_lines(root: Path) -> list[str]:
@@ -82,6 +92,8 @@ def _root_lines(root: Path) -> list[str]:
                 contact = _percent(contact_frames(ep.pressure.grids, TactileLayout.default().bend)) if ep.pressure else "n/a"
                 lines.append(f"  {path.relative_to(root)}: {ep.num_frames} frames, views {'+'.join(ep.view_names) or 'none'}, "
                              f"pose valid {pose}, contact {contact}, problems {len(ep.problems)}")
+                problems = [p.removeprefix(f"{root}{os.sep}") for p in ep.problems]
+                lines += problem_lines(problems, "      ", ROOT_PROBLEMS_SHOWN)
         except DataError as exc:
             lines.append(f"  {path.relative_to(root)}: unreadable: {exc}")
     lines.append(f"total     {total} frames ({total / 30 / 60:.1f} min at 30 fps)")

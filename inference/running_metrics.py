@@ -5,12 +5,12 @@ from collections import deque
 
 import numpy as np
 
-from inference.metrics import CONTACT_THRESHOLD, MetricAccumulator
+from inference.metrics import CONTACT_THRESHOLD, MetricAccumulator, reported_metrics
 
 
 class RunningMetrics:
     """`add(pred, gt)` per frame ((2, 21, 21) each, NaN outside the layout); `cumulative()` and `rolling()`
-    give the official metric dict (NaN where undefined, e.g. no contact yet). A seek should `reset()`.
+    give the six reported official metrics (`METRICS`; NaN where undefined, e.g. no contact yet). A seek should `reset()`.
     `threshold`: the contact threshold (official 0.1).
 
     Each frame's metric sums are kept as one small vector, so the rolling window is a sum of `window`
@@ -40,9 +40,7 @@ class RunningMetrics:
         self.frames += 1
 
     def _result(self, sums: np.ndarray) -> dict[str, float]:
-        accumulator = self._accumulator()
-        accumulator.sums = dict(zip(self._keys, sums.tolist()))
-        return accumulator.result()
+        return reported_metrics(dict(zip(self._keys, sums.tolist())))
 
     def cumulative(self) -> dict[str, float]:
         return self._result(self._total)

@@ -1,6 +1,8 @@
 """The command line on real episode folders and HDF5 files."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -23,6 +25,25 @@ def test_info_on_an_episode(episode_dir, capsys):
     assert "Home/pick_up_bottle/20260319_211038_740" in out and "40 at 30 fps" in out
     assert "ego 64×48 (40 frames)" in out and "wilor: left valid 100%" in out
     assert "contact" in out and "problems  none" in out
+
+
+def break_lines(path: Path, numbers: list[int]) -> None:
+    """Cut the given 1-based lines of a JSON-lines file short, so they no longer parse."""
+    lines = path.read_text().splitlines()
+    for number in numbers:
+        lines[number - 1] = lines[number - 1][:10]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_info_on_a_dataset_root_lists_each_trajectory_s_problems(tmp_path, capsys):
+    one = write_episode(tmp_path / "Home" / "a" / "1", frames=8, size=(16, 16))
+    many = write_episode(tmp_path / "Home" / "b" / "2", frames=8, size=(16, 16), seed=1)
+    break_lines(one / "wilor_hands.json", [3])
+    break_lines(many / "wilor_hands.json", [2, 3, 4, 5, 6])
+    assert main(["info", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "problems 1\n      - Home/a/1/wilor_hands.json: line 3: invalid JSON" in out
+    assert out.count("Home/b/2/wilor_hands.json: line") == 3 and "      … and 2 more" in out
 
 
 def test_convert_info_and_split_on_a_dataset(raw_root, tmp_path, capsys):

@@ -13,7 +13,7 @@ from devices.episode_loader import open_episode
 from devices.video_io import VideoReader
 from inference.checkpoint import load_model
 from inference.evaluation import SPAN, predict_trajectory
-from inference.metrics import METRICS
+from inference.metrics import ALL_METRICS
 
 
 def nonempty_split(root) -> str:
@@ -31,14 +31,18 @@ def test_eval_writes_the_table_per_view_and_scene(sim_hdf5_root, tiny_checkpoint
     assert "| views | scene |" in printed and "causal newest-frame" in printed
     payload = json.loads((tmp_path / "out" / "results.json").read_text())
     assert [r["views"] for r in payload["results"]] == ["ego", "all"]
+    counts = ("temporal_support", "num_gt_onsets", "num_gt_offsets")
     for result in payload["results"]:
         assert "overall" in result["stitched"] and len(result["trajectories"]) == len(split[name])
+        assert tuple(result["causal"]["overall"]) == ALL_METRICS
         for row in result["trajectories"]:
             for mode in ("stitched", "causal"):
-                for key in METRICS:
+                assert tuple(row[mode]) == ALL_METRICS
+                for key in ALL_METRICS:
                     value = row[mode][key]
-                    assert math.isnan(value) or 0.0 <= value <= 1.0
-    assert (tmp_path / "out" / "results.md").read_text().startswith("# Evaluation on")
+                    assert value >= 0 if key in counts else (math.isnan(value) or 0.0 <= value <= 1.0)
+    table = (tmp_path / "out" / "results.md").read_text()
+    assert table.startswith("# Evaluation on") and table.count("| temporal_f1 |") == 2 and "| offset_recall |" in table
     videos = sorted((tmp_path / "out").glob("*.mp4"))
     assert len(videos) == 2 * len(split[name])
     with VideoReader(videos[0]) as reader:

@@ -1,4 +1,6 @@
-"""The official metric protocol on hand-computed examples, its 0/0 cases, and float64 accumulation."""
+"""The official metric protocol on hand-computed examples, its 0/0 cases, and float64 accumulation; the
+unreported contact-timing metrics (frame precision / recall / F1, onsets and offsets) on hand-made contact
+sequences."""
 from __future__ import annotations
 
 import math
@@ -9,7 +11,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from devices.tactile_layout import TactileLayout
-from inference.metrics import MetricAccumulator, aggregate, compute_tactile_metrics, contact_frames, ground_truth_for_metrics
+from inference.metrics import (
+    ALL_METRICS,
+    MetricAccumulator,
+    aggregate,
+    compute_tactile_metrics,
+    contact_frames,
+    ground_truth_for_metrics,
+    matched_events,
+)
 
 LAYOUT = TactileLayout.default()
 BEND = LAYOUT.bend
@@ -58,7 +68,8 @@ def test_zero_over_zero_cases_follow_the_protocol():
     assert m["temporal_accuracy"] == 1.0 and m["mae"] == 0.0
     all_nan = np.full((2, 2, 21, 21), np.nan)
     m = compute_tactile_metrics(np.zeros_like(all_nan), all_nan, BEND)
-    assert all(math.isnan(v) for v in m.values())
+    counts = ("temporal_support", "num_gt_onsets", "num_gt_offsets")
+    assert all(math.isnan(m[k]) for k in ALL_METRICS if k not in counts) and all(m[k] == 0 for k in counts)
     assert math.isnan(aggregate([m, m])["mae"])
     assert aggregate([{**m, "mae": 0.2}, {**m, "mae": 0.4}])["mae"] == pytest.approx(0.3)
 
@@ -109,3 +120,98 @@ def test_ground_truth_vmax_fallback():
     assert np.nanmax(ground_truth_for_metrics(grids * 0.1, normalized=False)) == pytest.approx(0.4)
     assert np.isnan(ground_truth_for_metrics(grids, normalized=True)[0, 0, 0, 0])
     assert np.isnan(ground_truth_for_metrics(np.full((1, 2, 21, 21), np.nan), normalized=False)).all()
+
+
+def sequence(flags: str) -> np.ndarray:
+    """Frames from a string: "1" contact (16 tactile cells at 0.5), "0" no contact, "n" all NaN."""
+    grids = empty(len(flags))
+    rows, cols = np.array(tactile_cells(0, 16)).T
+    for i, flag in enumerate(flags):
+        if flag == "1":
+            grids[i, 0, rows, cols] = 0.5
+        elif flag == "n":
+            grids[i] = np.nan
+    return grids
+
+
+def timing(pred: str, gt: str) -> dict[str, float]:
+    return compute_tactile_metrics(sequence(pred), sequence(gt), BEND)
+
+
+def events(m: dict[str, float]) -> tuple:
+    return (m["onset_precision"], m["onset_recall"], m["num_gt_onsets"],
+            m["offset_precision"], m["offset_recall"], m["num_gt_offsets"])
+
+
+@pytest.mark.parametrize("pred, gt, want", [
+    ("0000011111", "0001111111", (1.0, 1.0, 1, 0.0, 0.0, 0)),  # onset 2 frames late: matched
+    ("0111111111", "0001111111", (1.0, 1.0, 1, 0.0, 0.0, 0)),  # 2 frames early: matched
+    ("0000001111", "0001111111", (0.0, 0.0, 1, 0.0, 0.0, 0)),  # 3 frames late: not
+    ("1111110000", "1111000000", (0.0, 0.0, 0, 1.0, 1.0, 1)),  # offset 2 frames late: matched
+    ("1111111000", "1111000000", (0.0, 0.0, 0, 0.0, 0.0, 1)),  # 3 frames late: not
+    ("0110011000", "0110000000", (0.5, 1.0, 1, 0.5, 1.0, 1)),  # one extra predicted press
+])
+def test_onsets_and_offsets_match_within_two_frames(pred, gt, want):
+    assert events(timing(pred, gt)) == want
+
+
+def test_no_ground_truth_events_and_no_predicted_events_give_zero():
+    assert events(timing("1100", "1111")) == (0.0, 0.0, 0, 0.0, 0.0, 0)  # a predicted offset, none true
+    assert events(timing("0000", "0011")) == (0.0, 0.0, 1, 0.0, 0.0, 0)  # a true onset, none predicted
+    assert events(timing("0000", "0000")) == (0.0, 0.0, 0, 0.0, 0.0, 0)
+
+
+def test_all_nan_frames_are_removed_from_the_event_sequence():
+    # kept frames: ground truth 0111, prediction 0011: onsets at kept positions 1 and 2 (frames 1 and 5)
+    assert events(timing("00nnn11", "01nnn11")) == (1.0, 1.0, 1, 0.0, 0.0, 0)
+    # a NaN frame inside a press is neither an offset nor an onset
+    assert events(timing("1n1", "1n1")) == (0.0, 0.0, 0, 0.0, 0.0, 0)
+
+
+@pytest.mark.parametrize("gt", ["", "n", "1", "n1n", "0nn"])
+def test_fewer_than_two_kept_frames_give_nan_event_ratios_and_zero_counts(gt):
+    m = timing("1" * len(gt), gt)
+    assert all(math.isnan(m[f"{kind}_{ratio}"]) for kind in ("onset", "offset") for ratio in ("precision", "recall"))
+    assert m["num_gt_onsets"] == 0 and m["num_gt_offsets"] == 0
+
+
+def test_frame_precision_recall_f1_by_hand():
+    m = timing("0111110", "1111000")  # TP 3, FP 2, FN 1
+    assert m["temporal_precision"] == pytest.approx(3 / 5) and m["temporal_recall"] == pytest.approx(3 / 4)
+    assert m["temporal_f1"] == pytest.approx(2 * 0.6 * 0.75 / 1.35) and m["temporal_support"] == 4
+    assert m["temporal_accuracy"] == pytest.approx(4 / 7)
+    m = timing("00n", "11n")  # nothing predicted: precision's denominator is 0
+    assert (m["temporal_precision"], m["temporal_recall"], m["temporal_f1"], m["temporal_support"]) == (0.0, 0.0, 0.0, 2)
+
+
+def test_no_ground_truth_contact_frame_gives_nan_precision_recall_f1():
+    m = timing("110", "000")
+    assert all(math.isnan(m[k]) for k in ("temporal_precision", "temporal_recall", "temporal_f1"))
+    assert m["temporal_support"] == 0
+
+
+def test_a_predicted_event_takes_the_first_unmatched_true_event():
+    assert matched_events(np.array([4, 6]), np.array([2, 4])) == 2  # 4 takes 2 (first in range), 6 takes 4
+    assert matched_events(np.array([3, 4]), np.array([3])) == 1  # a true event matches once
+    assert matched_events(np.array([], int), np.array([3])) == 0
+
+
+def test_aggregate_averages_the_extra_metrics_and_counts():
+    rows = [timing("0011", "0011"), timing("0000", "0111"), timing("n", "n")]
+    out = aggregate(rows)
+    assert tuple(out) == ALL_METRICS
+    assert out["num_gt_onsets"] == pytest.approx(2 / 3) and out["onset_recall"] == pytest.approx(0.5)
+    assert out["temporal_f1"] == pytest.approx(0.5)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.text("01n", max_size=12), st.text("01n", max_size=12), st.lists(st.integers(0, 12), max_size=4))
+def test_chunked_accumulation_of_contact_sequences_equals_one_call(pred, gt, cuts):
+    frames = min(len(pred), len(gt))
+    p, g = sequence(pred[:frames]), sequence(gt[:frames])
+    acc = MetricAccumulator(BEND)
+    for part in np.split(np.arange(frames), sorted(min(c, frames) for c in cuts)):
+        acc.add(p[part], g[part])
+    streamed, batch = acc.result(), compute_tactile_metrics(p, g, BEND)
+    assert tuple(streamed) == ALL_METRICS
+    assert all(streamed[k] == batch[k] or (math.isnan(streamed[k]) and math.isnan(batch[k])) for k in ALL_METRICS)

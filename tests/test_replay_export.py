@@ -64,7 +64,7 @@ def test_running_metrics_roll_and_accumulate():
 
 def test_running_metrics_equal_the_batch_metrics_of_their_frames():
     """The per-frame sum vectors give exactly the official metrics of the window / of every frame."""
-    from inference.metrics import compute_tactile_metrics
+    from inference.metrics import METRICS, compute_tactile_metrics
 
     layout = TactileLayout.default()
     rng = np.random.default_rng(3)
@@ -77,5 +77,6 @@ def test_running_metrics_equal_the_batch_metrics_of_their_frames():
         metrics.add(p, g)
     for got, frames in ((metrics.rolling(), slice(43, 50)), (metrics.cumulative(), slice(0, 50))):
         want = compute_tactile_metrics(preds[frames], gts[frames], layout.bend, threshold=0.2)
-        for key, value in want.items():
-            assert np.isclose(got[key], value, rtol=1e-12, equal_nan=True), key
+        assert tuple(got) == METRICS
+        for key in METRICS:
+            assert np.isclose(got[key], want[key], rtol=1e-12, equal_nan=True), key
