@@ -4,9 +4,22 @@ from __future__ import annotations
 import argparse
 import sys
 
-from app import (bench_command, convert_command, demo_command, eval_command, export_onnx_command, grids_command, info_command,
-                 live_command, record_command, replay_command, simulate_command, split_command, train_command)
-from devices.errors import UserError
+from touchanything.app.commands import (
+    bench_command,
+    convert_command,
+    demo_command,
+    eval_command,
+    export_onnx_command,
+    grids_command,
+    info_command,
+    live_command,
+    record_command,
+    replay_command,
+    simulate_command,
+    split_command,
+    train_command,
+)
+from touchanything.devices.errors import UserError
 
 COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command, train_command,
             eval_command, replay_command, live_command, record_command, export_onnx_command, bench_command)

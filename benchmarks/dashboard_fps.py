@@ -27,13 +27,13 @@ LIVE_SCENE = Path("scenes/sim.toml")
 
 
 def measure(tier: str | None, frames: int) -> dict:
-    from app.demo_command import sample_episodes
-    from app.engine_choice import ModelChoice, build_engine, default_checkpoint
-    from app.live_command import open_live_session
-    from app.replay_session import ReplaySession
-    from devices.episode_loader import open_episode
-    from devices.snapshot import VIEW_NAMES
-    from viz.dashboard import Dashboard
+    from touchanything.app.commands.demo_command import sample_episodes
+    from touchanything.app.commands.live_command import open_live_session
+    from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, default_checkpoint
+    from touchanything.app.sessions.replay_session import ReplaySession
+    from touchanything.devices.episodes.episode_loader import open_episode
+    from touchanything.devices.snapshot import VIEW_NAMES
+    from touchanything.viz.dashboard.dashboard import Dashboard
 
     if tier == "live":
         session = open_live_session(LIVE_SCENE).start()
@@ -68,7 +68,7 @@ def steal_percent(before: np.ndarray, after: np.ndarray) -> float:
 
 
 def ensure_display() -> subprocess.Popen | None:
-    from viz.display import display_problem
+    from touchanything.viz.display import display_problem
 
     if display_problem() is None:
         return None

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from devices.jq_protocol import PACKET_BYTES, FIRST_HALF, JQStreamParser, encode_sample
+from touchanything.devices.hardware.jq_protocol import FIRST_HALF, PACKET_BYTES, JQStreamParser, encode_sample
 
 SAMPLE_RATE_HZ = 100
 SAMPLE_BYTES = sum(PACKET_BYTES.values())

@@ -15,11 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from devices.episode_loader import open_episode
-from devices.episode_writer import EpisodeFrame, RawEpisodeWriter
-from devices.hdf5_convert import convert_trajectory
-from devices.replay import ReplayConfig, ReplaySource
-from devices.snapshot import VIEW_NAMES
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
+from touchanything.devices.episodes.hdf5_convert import convert_trajectory
+from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
+from touchanything.devices.snapshot import VIEW_NAMES
 
 
 def textured_frame(view: int, frame: int, texture: np.ndarray) -> np.ndarray:

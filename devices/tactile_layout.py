@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from devices.errors import DataError
+from touchanything.devices.errors import DataError
 
 GRID_SIZE = 21
 RAW_SLOTS = 256
@@ -85,7 +85,7 @@ class TactileLayout:
     source: str
 
     @classmethod
-    def load(cls, mapping_left: Path, mapping_right: Path, bend_cells: Path) -> "TactileLayout":
+    def load(cls, mapping_left: Path, mapping_right: Path, bend_cells: Path) -> TactileLayout:
         """Load the three official-format files; bend cells must lie inside the layout."""
         left = read_mapping(Path(mapping_left))
         right = np.fliplr(read_mapping(Path(mapping_right)))
@@ -98,15 +98,15 @@ class TactileLayout:
         return cls(index, bend, str(Path(mapping_left).parent))
 
     @classmethod
-    def from_dir(cls, folder: Path) -> "TactileLayout":
+    def from_dir(cls, folder: Path) -> TactileLayout:
         """Load a folder holding the two mapping files and `hand_joint_positions.json`."""
         folder = Path(folder)
         return cls.load(folder / MAPPING_FILES[0], folder / MAPPING_FILES[1], folder / BEND_FILE)
 
     @classmethod
-    def default(cls) -> "TactileLayout":
+    def default(cls) -> TactileLayout:
         """The project's own layout (same geometry as the official one: 217 cells, 151 tactile + 66 bend)."""
-        folder = resources.files("devices") / "layouts" / "default"
+        folder = resources.files("touchanything.devices") / "layouts" / "default"
         with resources.as_file(folder) as path:
             return cls.from_dir(path)
 

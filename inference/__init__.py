@@ -2,6 +2,6 @@
 
 Public entry point: `inference.load_model(checkpoint_path, config_path=None)` → the model in eval mode.
 """
-from inference.checkpoint import load_model
+from touchanything.inference.model.checkpoint import load_model
 
 __all__ = ["load_model"]

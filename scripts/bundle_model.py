@@ -9,7 +9,7 @@ from pathlib import Path
 
 import yaml
 
-from inference.checkpoint import CONFIG_FILE, find_config, load_model, read_checkpoint, save_checkpoint
+from touchanything.inference.model.checkpoint import CONFIG_FILE, find_config, load_model, read_checkpoint, save_checkpoint
 
 
 def main() -> None:

@@ -39,7 +39,8 @@ def table2(root: Path, model: str, mode: str) -> list[str]:
 
 
 def ablation(root: Path, with_dropout: str, without: str) -> list[str]:
-    lines = ["| training | split | V-IoU all views | V-IoU ego only | ΔV (all − ego) | C-IoU all | C-IoU ego |", "|---|---|---|---|---|---|---|"]
+    lines = ["| training | split | V-IoU all views | V-IoU ego only | ΔV (all − ego) | C-IoU all | C-IoU ego |",
+             "|---|---|---|---|---|---|---|"]
     for label, model in (("with view dropout", with_dropout), ("without view dropout", without)):
         for split in SPLITS:
             r = load(root, model, split)

@@ -6,9 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from devices.episode_files import write_camera_matrices, write_quality
-from devices.episode_writer import EpisodeFrame, RawEpisodeWriter
-from devices.snapshot import VIEW_NAMES
+from touchanything.devices.episodes.episode_files import write_camera_matrices, write_quality
+from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
+from touchanything.devices.snapshot import VIEW_NAMES
 
 OFFICIAL_DIR = Path(__file__).resolve().parents[2] / "shared" / "reference" / "egotouch"
 
@@ -73,8 +73,8 @@ def episode_dir(tmp_path: Path) -> Path:
 @pytest.fixture(scope="session")
 def sim_hdf5_root(tmp_path_factory) -> Path:
     """Three short simulated episodes converted to HDF5, with their split.json (seed 5)."""
-    from devices.dataset_conversion import convert_dataset
-    from devices.sim.dataset_generator import SimulationConfig, simulate_dataset
+    from touchanything.devices.episodes.dataset_conversion import convert_dataset
+    from touchanything.devices.sim.dataset_generator import SimulationConfig, simulate_dataset
 
     raw = tmp_path_factory.mktemp("sim_raw")
     simulate_dataset(raw, SimulationConfig(episodes=3, seconds=2.0, seed=5, workers=1))
@@ -88,8 +88,8 @@ def tiny_checkpoint(tmp_path_factory) -> Path:
     """A randomly initialised `tiny` model saved in the official checkpoint format."""
     import torch
 
-    from inference.checkpoint import build_model, save_checkpoint
-    from inference.model_config import PRESETS
+    from touchanything.inference.model.checkpoint import build_model, save_checkpoint
+    from touchanything.inference.model.model_config import PRESETS
 
     torch.manual_seed(0)
     path = tmp_path_factory.mktemp("ckpt") / "best_model.pth"
@@ -122,7 +122,7 @@ def x_display():
     import subprocess
     import time
 
-    from viz.display import display_problem
+    from touchanything.viz.display import display_problem
 
     if os.environ.get("DISPLAY") and display_problem() is None:
         yield os.environ["DISPLAY"]

@@ -9,12 +9,12 @@ import h5py
 import numpy as np
 import pytest
 
-from devices.episode_files import read_pressure_grids
-from devices.episode_loader import open_episode
-from devices.hdf5_convert import convert_trajectory
-from devices.raw_episode import open_raw_episode
-from devices.video_io import VideoWriter
 from tests.conftest import frame_image
+from touchanything.devices.episodes.episode_files import read_pressure_grids
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.hdf5_convert import convert_trajectory
+from touchanything.devices.episodes.raw_episode import open_raw_episode
+from touchanything.devices.episodes.video_io import VideoWriter
 
 
 def _lines(path):
@@ -106,11 +106,16 @@ def test_pose_rows_with_wrong_joint_count(episode_dir):
         assert not ep.wilor.valid[0, 1] and ep.wilor.valid[0, 0]
 
 
+def _grids(left: tuple, right: tuple | None, left_dtype=np.float32) -> dict[str, np.ndarray]:
+    arrays = {"left_pressure_grid": np.zeros(left, left_dtype)}
+    return arrays | ({"right_pressure_grid": np.zeros(right, np.float32)} if right else {})
+
+
 @pytest.mark.parametrize("arrays, field", [
-    ({"left_pressure_grid": np.zeros((40, 21, 20), np.float32), "right_pressure_grid": np.zeros((40, 21, 21), np.float32)}, "left_pressure_grid"),
-    ({"left_pressure_grid": np.zeros((40, 21, 21), np.int32), "right_pressure_grid": np.zeros((40, 21, 21), np.float32)}, "left_pressure_grid"),
-    ({"left_pressure_grid": np.zeros((40, 21, 21), np.float32)}, "right_pressure_grid"),
-    ({"left_pressure_grid": np.zeros((40, 21, 21), np.float32), "right_pressure_grid": np.zeros((39, 21, 21), np.float32)}, "right_pressure_grid"),
+    (_grids((40, 21, 20), (40, 21, 21)), "left_pressure_grid"),
+    (_grids((40, 21, 21), (40, 21, 21), np.int32), "left_pressure_grid"),
+    (_grids((40, 21, 21), None), "right_pressure_grid"),
+    (_grids((40, 21, 21), (39, 21, 21)), "right_pressure_grid"),
 ])
 def test_pressure_npz_of_wrong_shape_or_dtype(episode_dir, arrays, field):
     np.savez(episode_dir / "pressure_grids.npz", **arrays)
@@ -158,7 +163,7 @@ def test_hdf5_with_wrong_dataset_shape(episode_dir, tmp_path):
 
 def test_not_an_hdf5_file(tmp_path):
     (tmp_path / "x.hdf5").write_text("hello")
-    from devices.errors import DataError
+    from touchanything.devices.errors import DataError
 
     with pytest.raises(DataError, match="not a readable HDF5 file"):
         open_episode(tmp_path / "x.hdf5")
@@ -169,7 +174,7 @@ def test_cli_prints_one_line_without_traceback(tmp_path, make):
     path = {"missing": tmp_path / "nope", "garbage_hdf5": tmp_path / "x.hdf5", "not_episode": tmp_path / "t.txt"}[make]
     if make != "missing":
         path.write_text("junk")
-    proc = subprocess.run([sys.executable, "-m", "app.cli", "info", str(path)], capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-m", "touchanything.app.cli", "info", str(path)], capture_output=True, text=True)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
     assert str(path) in proc.stderr

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import torch
 
-from app.cli import main
-from app.demo_command import sample_episodes
-from inference.bench import BenchPlan, agreement, bench_model, naive_latency, settings_for
-from inference.bench_data import latency_clip, load_episode
-from inference.bench_report import pareto_front, target_checks, write_outputs
-from inference.model_config import preset
-from inference.touch_model import TouchAnything
+from touchanything.app.cli import main
+from touchanything.app.commands.demo_command import sample_episodes
+from touchanything.inference.evaluation.bench import BenchPlan, agreement, bench_model, naive_latency, settings_for
+from touchanything.inference.evaluation.bench_data import latency_clip, load_episode
+from touchanything.inference.evaluation.bench_report import pareto_front, target_checks, write_outputs
+from touchanything.inference.model.model_config import preset
+from touchanything.inference.model.touch_model import TouchAnything
 
 
 @pytest.fixture(scope="module")

@@ -14,12 +14,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from devices.camera_source import CameraSource
-from devices.errors import UserError
-from devices.oak_camera import DepthaiFrameSource, OakCamera, OakCameraConfig, host_clock_offset_us
-from devices.opencv_camera import OpenCVCamera, OpenCVCameraConfig
-from devices.threaded_source import LatestSlot, SourceEnded, now_us
-from devices.video_io import VideoWriter
+from touchanything.devices.episodes.video_io import VideoWriter
+from touchanything.devices.errors import UserError
+from touchanything.devices.hardware.camera_source import CameraSource
+from touchanything.devices.hardware.oak_camera import DepthaiFrameSource, OakCamera, OakCameraConfig, host_clock_offset_us
+from touchanything.devices.hardware.opencv_camera import OpenCVCamera, OpenCVCameraConfig
+from touchanything.devices.hardware.threaded_source import LatestSlot, SourceEnded, now_us
 
 RED, GREEN, BLUE_STEP = 200, 50, 8
 
@@ -108,14 +108,12 @@ def test_failed_connect_closes_and_leaves_no_thread_and_double_connect_is_refuse
 @given(st.lists(st.tuples(st.integers(1, 10**9), st.booleans()), max_size=40))
 def test_latest_slot_keeps_only_the_newest_and_counts_unread_replacements(steps):
     slot: LatestSlot[int] = LatestSlot()
-    t_us, unread, replaced = 0, False, 0
+    t_us, replaced = 0, 0
     for value, (interval, read) in enumerate(steps):
         t_us += interval
         replaced += slot.put(value, t_us)
-        unread = True
         if read:
             assert slot.get() == value
-            unread = False
     assert slot.get() == (len(steps) - 1 if steps else None)
     assert replaced == sum(1 for (_, r) in steps[:-1] if not r)
     summary = slot.summary()

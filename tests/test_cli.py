@@ -6,10 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.cli import main
-from devices.episode_loader import open_episode
-from devices.video_io import VideoReader
 from tests.conftest import write_episode
+from touchanything.app.cli import main
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.video_io import VideoReader
 
 
 @pytest.fixture
@@ -106,7 +106,7 @@ def test_demo_replays_an_episode_into_a_video(episode_dir, tmp_path, capsys):
 
 def test_demo_without_a_display_falls_back_to_the_video(tmp_path, capsys, monkeypatch):
     """No X display: the bundled sample through the bundled model into a video, saying why and where."""
-    from app.demo_command import sample_episodes
+    from touchanything.app.commands.demo_command import sample_episodes
 
     monkeypatch.delenv("DISPLAY", raising=False)
     assert len(sample_episodes()) == 3

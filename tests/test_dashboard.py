@@ -11,15 +11,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from app.cli import main
-from app.demo_command import sample_episodes
-from app.engine_choice import MODELS_DIR, ModelChoice, build_engine, default_checkpoint
-from app.replay_command import replay_in_dashboard
-from app.replay_session import ReplaySession
-from devices.episode_loader import open_episode
-from devices.snapshot import VIEW_NAMES
-from viz.dashboard import CELL, MAPS, Dashboard
-from viz.pressure_panel import AXES, BACKGROUND, MAP_GAP
+from touchanything.app.cli import main
+from touchanything.app.commands.demo_command import sample_episodes
+from touchanything.app.commands.replay_command import replay_in_dashboard
+from touchanything.app.sessions.engine_choice import MODELS_DIR, ModelChoice, build_engine, default_checkpoint
+from touchanything.app.sessions.replay_session import ReplaySession
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.viz.dashboard.dashboard import CELL, MAPS, Dashboard
+from touchanything.viz.pressure_panel import AXES, BACKGROUND, MAP_GAP
 
 NANO = ModelChoice(default_checkpoint())
 
@@ -174,7 +174,7 @@ def test_a_checkpoint_for_another_preset_keeps_the_dashboard_running(dashboard_d
 
 def live_run(recordings: Path) -> dict:
     """The simulated rig in the dashboard, recording for about two seconds from another thread."""
-    from app.live_command import open_live_session
+    from touchanything.app.commands.live_command import open_live_session
 
     session = open_live_session(Path(__file__).resolve().parents[1] / "scenes" / "sim.toml")
     session.recordings_dir = recordings

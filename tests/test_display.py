@@ -1,7 +1,7 @@
 """The X display check that must run before dearpygui creates a viewport."""
 from __future__ import annotations
 
-from viz.display import display_problem
+from touchanything.viz.display import display_problem
 
 
 def test_missing_or_malformed_displays_are_named(monkeypatch):

@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 import torch
 
-from app.cli import main
-from devices.errors import UserError
-from devices.snapshot import VIEW_NAMES, Snapshot
-from inference.checkpoint import build_model, save_checkpoint
-from inference.engine_config import EngineConfig, onnx_cache_dir
-from inference.engine_runtime import OnnxRuntime
-from inference.model_config import PRESETS
-from inference.streaming_engine import StreamingEngine
+from touchanything.app.cli import main
+from touchanything.devices.errors import UserError
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.inference.engine.engine_config import EngineConfig, onnx_cache_dir
+from touchanything.inference.engine.engine_runtime import OnnxRuntime
+from touchanything.inference.engine.streaming_engine import StreamingEngine
+from touchanything.inference.model.checkpoint import build_model, save_checkpoint
+from touchanything.inference.model.model_config import PRESETS
 
 
 @pytest.fixture(scope="module")

@@ -6,15 +6,24 @@ import json
 import numpy as np
 import pytest
 
-from devices.episode_files import (Masks, read_camera_matrices, read_masks, read_pressure_grids, read_quality,
-                                   write_camera_matrices, write_masks, write_pressure_grids, write_quality)
-from devices.episode_loader import find_raw_episodes, open_episode
-from devices.episode_streams import read_glove, read_hands, read_trackers
-from devices.raw_episode import open_raw_episode
-from devices.tactile_layout import TactileLayout
-from devices.tactile_pipeline import process_raw
-from devices.video_io import VideoReader, VideoWriter
 from tests.conftest import frame_image, glove_sample, wilor_hands, write_episode
+from touchanything.devices.episodes.episode_files import (
+    Masks,
+    read_camera_matrices,
+    read_masks,
+    read_pressure_grids,
+    read_quality,
+    write_camera_matrices,
+    write_masks,
+    write_pressure_grids,
+    write_quality,
+)
+from touchanything.devices.episodes.episode_loader import find_raw_episodes, open_episode
+from touchanything.devices.episodes.episode_streams import read_glove, read_hands, read_trackers
+from touchanything.devices.episodes.raw_episode import open_raw_episode
+from touchanything.devices.episodes.video_io import VideoReader, VideoWriter
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.devices.tactile_pipeline import process_raw
 
 
 def test_written_episode_reads_back(episode_dir):
@@ -98,7 +107,7 @@ def test_stream_readers_round_trip(episode_dir):
 
 
 def test_streams_appearing_later_keep_line_numbers(tmp_path):
-    from devices.episode_writer import EpisodeFrame, RawEpisodeWriter
+    from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 
     rng = np.random.default_rng(3)
     with RawEpisodeWriter(tmp_path / "ep") as writer:
@@ -120,7 +129,7 @@ def test_discovery_finds_trajectories_up_to_four_levels(tmp_path):
 
 
 def test_open_episode_rejects_other_paths(tmp_path):
-    from devices.errors import DataError
+    from touchanything.devices.errors import DataError
 
     (tmp_path / "x.txt").write_text("hi")
     for path, message in ((tmp_path / "x.txt", "not an episode"), (tmp_path, "not an episode folder"),

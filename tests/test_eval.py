@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from app.cli import main
-from devices.dataset_split import read_split
-from devices.episode_loader import open_episode
-from devices.video_io import VideoReader
-from inference.checkpoint import load_model
-from inference.evaluation import SPAN, predict_trajectory
-from inference.metrics import ALL_METRICS
+from touchanything.app.cli import main
+from touchanything.devices.episodes.dataset_split import read_split
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.video_io import VideoReader
+from touchanything.inference.evaluation.evaluation import SPAN, predict_trajectory
+from touchanything.inference.evaluation.metrics import ALL_METRICS
+from touchanything.inference.model.checkpoint import load_model
 
 
 def nonempty_split(root) -> str:

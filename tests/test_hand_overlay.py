@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.demo_command import sample_episodes
-from devices.episode_loader import open_episode
-from devices.tactile_layout import TactileLayout
-from viz.hand_projection import draw_hands, project_wilor
-from viz.hand_regions import REGIONS, joint_pressure
+from touchanything.app.commands.demo_command import sample_episodes
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.viz.hand_projection import draw_hands, project_wilor
+from touchanything.viz.hand_regions import REGIONS, joint_pressure
 
 
 def test_joint_regions_cover_only_pressure_cells_of_each_hand():

@@ -7,12 +7,12 @@ import h5py
 import numpy as np
 import pytest
 
-from devices.dataset_conversion import convert_dataset
-from devices.dataset_split import SplitConfig, build_split, read_split, write_split
-from devices.episode_loader import open_episode
-from devices.errors import DataError, UserError
-from devices.hdf5_convert import convert_trajectory
 from tests.conftest import write_episode
+from touchanything.devices.episodes.dataset_conversion import convert_dataset
+from touchanything.devices.episodes.dataset_split import SplitConfig, build_split, read_split, write_split
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.hdf5_convert import convert_trajectory
+from touchanything.devices.errors import DataError, UserError
 
 OFFICIAL_DATASETS = {
     "timestamps": ((), np.int64),

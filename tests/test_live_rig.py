@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.cli import main
-from app.live_command import open_live_session, run_headless
-from app.scene import read_scene
-from devices.episode_loader import open_episode
-from devices.errors import UserError
-from devices.pose_transform import PoseCalibration
-from devices.sim.rig import rig_calibration
+from touchanything.app.cli import main
+from touchanything.app.commands.live_command import open_live_session, run_headless
+from touchanything.app.sessions.scene import read_scene
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.errors import UserError
+from touchanything.devices.rig.pose_transform import PoseCalibration
+from touchanything.devices.sim.rig import rig_calibration
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 

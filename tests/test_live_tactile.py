@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from devices.live_tactile import LiveTactile
-from devices.tactile_layout import TactileLayout
-from devices.tactile_pipeline import TactileConfig, process_raw
+from touchanything.devices.rig.live_tactile import LiveTactile
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.devices.tactile_pipeline import TactileConfig, process_raw
 
 
 def test_streaming_grids_equal_the_episode_grids_after_the_peak():

@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from devices.tactile_layout import TactileLayout
-from inference.metrics import (
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.inference.evaluation.metrics import (
     ALL_METRICS,
     MetricAccumulator,
     aggregate,

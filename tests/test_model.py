@@ -9,13 +9,13 @@ import torch
 import torch.nn.functional as F
 import yaml
 
-from devices.errors import UserError
-from inference.checkpoint import build_model, load_model, save_checkpoint
-from inference.model_config import PRESETS, ModelConfig, with_backbone
-from inference.pose_encoder import prepare_poses
-from inference.preprocess import to_model_input
-from inference.touch_model import TouchAnything
-from inference.vit import BACKBONES, DinoVisionTransformer, interpolate_pos_embed, load_dinov2_weights
+from touchanything.devices.errors import UserError
+from touchanything.inference.model.checkpoint import build_model, load_model, save_checkpoint
+from touchanything.inference.model.model_config import PRESETS, ModelConfig, with_backbone
+from touchanything.inference.model.pose_encoder import prepare_poses
+from touchanything.inference.model.preprocess import to_model_input
+from touchanything.inference.model.touch_model import TouchAnything
+from touchanything.inference.model.vit import BACKBONES, DinoVisionTransformer, interpolate_pos_embed, load_dinov2_weights
 
 VIEWS = ("ego", "wrist_left", "wrist_right")
 
@@ -83,7 +83,8 @@ def test_official_checkpoint_with_the_config_official_train_writes_loads_and_rep
                folder / "best_model.pth")
     shutil.copy(official_dir / "configs" / "config_saved_by_official_train.yaml", folder / "config.yaml")
     loaded = load_model(folder / "best_model.pth")
-    assert not loaded.training and loaded.config == with_backbone(PRESETS["paper"], pretrained_path="models/dinov2/dinov2_vitb14_pretrain.pth")
+    expected = with_backbone(PRESETS["paper"], pretrained_path="models/dinov2/dinov2_vitb14_pretrain.pth")
+    assert not loaded.training and loaded.config == expected
     for views in (("ego",), ("ego", "wrist_left"), ("ego", "wrist_right"), VIEWS):
         frames, poses = _inputs(PRESETS["paper"], views=views, size=112)
         with torch.no_grad():

@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 import yaml
 
-from app.cli import main
-from devices.errors import UserError
-from inference.config_files import read_config_file
-from inference.model_config import PRESETS, config_from_dict, config_to_dict, with_backbone
-from inference.train_config import TrainConfig, describe_settings, train_config_from_file, train_config_to_dict
+from touchanything.app.cli import main
+from touchanything.devices.errors import UserError
+from touchanything.inference.model.config_files import read_config_file
+from touchanything.inference.model.model_config import PRESETS, config_from_dict, config_to_dict, with_backbone
+from touchanything.inference.training.train_config import TrainConfig, describe_settings, train_config_from_file, train_config_to_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 OFFICIAL_TACTILE = ("touchanything_with_glove_aug_wilor.yaml", "config_saved_by_official_train.yaml")

@@ -14,16 +14,24 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from devices.episode_streams import read_hands, read_trackers
-from devices.errors import UserError
-from devices.pose_transform import (BAD_CHEST, NO_CHEST, NOT_FINITE, NOT_TRACKED, OUT_OF_BOUNDS, PoseCalibration,
-                                    mocap_to_model_frame, wilor_from_camera)
-from devices.sim.cameras import HEAD_FOCAL, HEIGHT, WIDTH, Camera
-from devices.sim.episode_generator import EpisodeSpec, generate_episode
-from devices.sim.rig import ROKOKO_AXES, rig_calibration, rokoko_joints, tracker_poses
-from devices.sim.shapes import pose_at, transform
-from devices.snapshot import TRACKER_ROLES
-from viz.hand_projection import project_wilor
+from touchanything.devices.episodes.episode_streams import read_hands, read_trackers
+from touchanything.devices.errors import UserError
+from touchanything.devices.rig.pose_transform import (
+    BAD_CHEST,
+    NO_CHEST,
+    NOT_FINITE,
+    NOT_TRACKED,
+    OUT_OF_BOUNDS,
+    PoseCalibration,
+    mocap_to_model_frame,
+    wilor_from_camera,
+)
+from touchanything.devices.sim.cameras import HEAD_FOCAL, HEIGHT, WIDTH, Camera
+from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_episode
+from touchanything.devices.sim.rig import ROKOKO_AXES, rig_calibration, rokoko_joints, tracker_poses
+from touchanything.devices.sim.shapes import pose_at, transform
+from touchanything.devices.snapshot import TRACKER_ROLES
+from touchanything.viz.hand_projection import project_wilor
 
 FAST = settings(max_examples=40, deadline=None)
 CALIBRATION = rig_calibration()

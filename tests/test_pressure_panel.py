@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viz.colormap import ERROR_LUT, PRESSURE_LUT
-from viz.pressure_panel import (
+from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT
+from touchanything.viz.pressure_panel import (
     AXES,
     BACKGROUND,
     BAR_WIDTH,

@@ -13,17 +13,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from devices.episode_loader import open_episode
-from devices.episode_streams import read_glove, read_hands
-from devices.episode_writer import EpisodeFrame, RawEpisodeWriter, write_grids_from_glove
-from devices.errors import UserError
-from devices.recorder import Recorder, RecorderConfig
-from devices.replay import ReplayConfig, ReplaySource
-from devices.rig_clock import RigClock
-from devices.snapshot import FPS, Snapshot
-from devices.threaded_source import now_us
-from devices.video_io import VideoReader
-from simulated_rig import frame_picture, simulated_rig
+from helpers.simulated_rig import frame_picture, simulated_rig
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.episode_streams import read_glove, read_hands
+from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter, write_grids_from_glove
+from touchanything.devices.episodes.video_io import VideoReader
+from touchanything.devices.errors import UserError
+from touchanything.devices.hardware.threaded_source import now_us
+from touchanything.devices.rig.recorder import Recorder, RecorderConfig
+from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
+from touchanything.devices.rig.rig_clock import RigClock
+from touchanything.devices.snapshot import FPS, Snapshot
 
 TESTS = Path(__file__).resolve().parent
 

@@ -7,10 +7,10 @@ import time
 import numpy as np
 import pytest
 
-from devices.episode_loader import open_episode
-from devices.errors import UserError
-from devices.hdf5_convert import convert_trajectory
-from devices.replay import ReplayConfig, ReplaySource
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.hdf5_convert import convert_trajectory
+from touchanything.devices.errors import UserError
+from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 
 
 def test_fast_replay_yields_every_frame_as_snapshots(episode_dir):

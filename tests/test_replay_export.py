@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.cli import main
-from devices.episode_loader import open_episode
-from devices.tactile_layout import TactileLayout
-from devices.video_io import VideoReader
-from inference.running_metrics import RunningMetrics
-from viz.pressure_panel import BACKGROUND
+from touchanything.app.cli import main
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.video_io import VideoReader
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.inference.evaluation.running_metrics import RunningMetrics
+from touchanything.viz.pressure_panel import BACKGROUND
 
 
 def test_replay_exports_a_playable_video_with_metrics(episode_dir, tmp_path, capsys, monkeypatch):
@@ -64,7 +64,7 @@ def test_running_metrics_roll_and_accumulate():
 
 def test_running_metrics_equal_the_batch_metrics_of_their_frames():
     """The per-frame sum vectors give exactly the official metrics of the window / of every frame."""
-    from inference.metrics import METRICS, compute_tactile_metrics
+    from touchanything.inference.evaluation.metrics import METRICS, compute_tactile_metrics
 
     layout = TactileLayout.default()
     rng = np.random.default_rng(3)

@@ -11,16 +11,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from devices.camera_source import CameraReading
-from devices.errors import UserError
-from devices.jq_glove import GloveReading
-from devices.openvr_trackers import TrackerReading
-from devices.rig_clock import RigClock, RigClockConfig
-from devices.rig_inputs import RigInput, build_snapshot, camera_fill, fill_order, glove_fill, mocap_fill, trackers_fill
-from devices.rokoko_protocol import RokokoFrame
-from devices.rokoko_udp import RokokoReading
-from devices.threaded_source import now_us
-from simulated_rig import CHEST_POSE, glove_sample, mocap_hands, simulated_rig, to_model
+from helpers.simulated_rig import CHEST_POSE, glove_sample, mocap_hands, simulated_rig, to_model
+from touchanything.devices.errors import UserError
+from touchanything.devices.hardware.camera_source import CameraReading
+from touchanything.devices.hardware.jq_glove import GloveReading
+from touchanything.devices.hardware.openvr_trackers import TrackerReading
+from touchanything.devices.hardware.rokoko_protocol import RokokoFrame
+from touchanything.devices.hardware.rokoko_udp import RokokoReading
+from touchanything.devices.hardware.threaded_source import now_us
+from touchanything.devices.rig.rig_clock import RigClock, RigClockConfig
+from touchanything.devices.rig.rig_inputs import RigInput, build_snapshot, camera_fill, fill_order, glove_fill, mocap_fill, trackers_fill
 
 STALE_US = 200_000
 T_US = 10_000_000

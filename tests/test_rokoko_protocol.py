@@ -10,10 +10,16 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
-from rokoko_messages import pack, studio_actor, studio_hands, v3_message
 
-from devices.rokoko_protocol import (HAND_JOINT_NAMES, LZ4_MAGIC, MAX_JSON_BYTES, RokokoProtocolError, decode_datagram,
-                                     encode_datagram)
+from helpers.rokoko_messages import pack, studio_actor, studio_hands, v3_message
+from touchanything.devices.hardware.rokoko_protocol import (
+    HAND_JOINT_NAMES,
+    LZ4_MAGIC,
+    MAX_JSON_BYTES,
+    RokokoProtocolError,
+    decode_datagram,
+    encode_datagram,
+)
 
 
 def test_full_body_v3_lz4_datagram_decodes_both_hands_in_official_order():

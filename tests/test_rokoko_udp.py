@@ -10,14 +10,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rokoko_messages import DEADLINE_S, GLOVE_AT_REST, pack, studio_actor, studio_hands, v3_message
 
-from devices.episode_loader import open_episode
-from devices.episode_writer import EpisodeFrame, RawEpisodeWriter
-from devices.errors import UserError
-from devices.rokoko_protocol import LZ4_MAGIC, encode_datagram
-from devices.rokoko_udp import RokokoConfig, RokokoReceiver
-from devices.sim.rokoko_sender import RokokoSenderConfig, SimulatedRokokoSender, episode_hands_provider
+from helpers.rokoko_messages import DEADLINE_S, GLOVE_AT_REST, pack, studio_actor, studio_hands, v3_message
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
+from touchanything.devices.errors import UserError
+from touchanything.devices.hardware.rokoko_protocol import LZ4_MAGIC, encode_datagram
+from touchanything.devices.hardware.rokoko_udp import RokokoConfig, RokokoReceiver
+from touchanything.devices.sim.rokoko_sender import RokokoSenderConfig, SimulatedRokokoSender, episode_hands_provider
 
 
 def wait_for(predicate, timeout: float = DEADLINE_S) -> bool:

@@ -6,17 +6,17 @@ import json
 import numpy as np
 import pytest
 
-from app.cli import main
-from devices.episode_loader import find_raw_episodes, open_episode
-from devices.errors import UserError
-from devices.hdf5_convert import convert_trajectory
-from devices.sim.dataset_generator import SimulationConfig, simulate_dataset
-from devices.sim.episode_generator import EpisodeSpec, generate_episode
-from devices.sim.hand_model import FINGER_COLUMNS, hand_state
-from devices.sim.shapes import Shape, pose_at
-from devices.sim.task_scripts import PALM_DOWN
-from devices.sim.touch import DEPTH_SCALE, cell_pressure
-from devices.tactile_layout import TactileLayout
+from touchanything.app.cli import main
+from touchanything.devices.episodes.episode_loader import find_raw_episodes, open_episode
+from touchanything.devices.episodes.hdf5_convert import convert_trajectory
+from touchanything.devices.errors import UserError
+from touchanything.devices.sim.dataset_generator import SimulationConfig, simulate_dataset
+from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_episode
+from touchanything.devices.sim.hand_model import FINGER_COLUMNS, hand_state
+from touchanything.devices.sim.shapes import Shape, pose_at
+from touchanything.devices.sim.task_scripts import PALM_DOWN
+from touchanything.devices.sim.touch import DEPTH_SCALE, cell_pressure
+from touchanything.devices.tactile_layout import TactileLayout
 
 JSONL = ("wilor_hands.json", "rokoko_hands.json", "vive_poses.json", "jq_pressure.json")
 
@@ -102,7 +102,7 @@ def test_split_and_card(small_dataset):
 def test_convert_moves_the_split_into_the_hdf5_root(small_dataset, tmp_path, capsys):
     out, _ = small_dataset
     assert main(["convert", str(out), str(tmp_path / "h5"), "--compression-level", "1"]) == 0
-    from devices.dataset_split import read_split
+    from touchanything.devices.episodes.dataset_split import read_split
 
     split = read_split(tmp_path / "h5" / "split.json")
     assert all(p.is_file() for key in split for p in split[key])
@@ -118,7 +118,7 @@ def test_dead_column_is_repaired_in_the_ground_truth(tmp_path):
 
 
 def _has_dead_column(seed: int) -> bool:
-    from devices.sim.episode_generator import DEAD_COLUMN_PROBABILITY, plan
+    from touchanything.devices.sim.episode_generator import DEAD_COLUMN_PROBABILITY, plan
 
     rng = np.random.default_rng(seed)
     plan(EpisodeSpec("Home", 1.0, seed, False, "x"), rng)

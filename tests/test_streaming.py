@@ -7,17 +7,17 @@ import numpy as np
 import pytest
 import torch
 
-from devices.episode_loader import find_hdf5_files, open_episode
-from devices.snapshot import VIEW_NAMES, Snapshot
-from devices.tactile_layout import TactileLayout
-from inference.engine_config import EngineConfig
-from inference.evaluation import predict_trajectory
-from inference.frame_ring import CachedFrame, FrameRing
-from inference.model_config import preset
-from inference.pose_encoder import prepare_poses
-from inference.preprocess import to_model_input
-from inference.streaming_engine import StreamingEngine
-from inference.touch_model import TouchAnything
+from touchanything.devices.episodes.episode_loader import find_hdf5_files, open_episode
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.frame_ring import CachedFrame, FrameRing
+from touchanything.inference.engine.streaming_engine import StreamingEngine
+from touchanything.inference.evaluation.evaluation import predict_trajectory
+from touchanything.inference.model.model_config import preset
+from touchanything.inference.model.pose_encoder import prepare_poses
+from touchanything.inference.model.preprocess import to_model_input
+from touchanything.inference.model.touch_model import TouchAnything
 
 TOLERANCE = 1e-4
 LAYOUT = TactileLayout.default()
@@ -91,7 +91,7 @@ def test_stitched_output_equals_the_official_offline_protocol(sim_hdf5_root):
     path = find_hdf5_files(sim_hdf5_root)[0]
     with open_episode(path) as episode:
         expected = predict_trajectory(model, episode, VIEW_NAMES, batch_size=8, ego_path="views").stitched
-        from devices.replay import ReplayConfig, ReplaySource
+        from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 
         engine = StreamingEngine(model, EngineConfig(output="stitched", invalid_hands="official"))
         predictions = [p for s in ReplaySource(episode, ReplayConfig(speed=None)) for p in engine.step(s)]

@@ -7,8 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from devices.tactile_layout import TactileLayout
-from devices.tactile_pipeline import TactileConfig, process_raw
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.devices.tactile_pipeline import TactileConfig, process_raw
 
 LAYOUT = TactileLayout.default()
 

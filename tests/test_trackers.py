@@ -12,9 +12,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from devices.errors import UserError
-from devices.openvr_trackers import (INSTALL_HINT, OpenVRTrackers, OpenVRTrackersConfig, pose_from_matrix,
-                                     poses_by_role)
+from touchanything.devices.errors import UserError
+from touchanything.devices.hardware.openvr_trackers import (
+    INSTALL_HINT,
+    OpenVRTrackers,
+    OpenVRTrackersConfig,
+    pose_from_matrix,
+    poses_by_role,
+)
 
 
 @dataclass

@@ -15,17 +15,22 @@ import pytest
 import torch
 import yaml
 
-from app.cli import main
-from devices.errors import UserError
-from inference.checkpoint import load_model, read_checkpoint
-from devices.episode_loader import open_episode
-from inference.clip_dataset import clip_starts, episode_poses, prepare_target
-from inference.model_config import PRESETS, with_backbone
-from inference.tactile_loss import TactileLossConfig, tactile_loss
-from inference.touch_model import TouchAnything
-from inference.train_config import (OptimizerConfig, SchedulerConfig, SystemConfig, TrainConfig, TrainingConfig,
-                                    train_config_from_file)
-from inference.trainer import Trainer, TrainingError
+from touchanything.app.cli import main
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.inference.model.checkpoint import load_model, read_checkpoint
+from touchanything.inference.model.model_config import PRESETS, with_backbone
+from touchanything.inference.model.touch_model import TouchAnything
+from touchanything.inference.training.clip_dataset import clip_starts, episode_poses, prepare_target
+from touchanything.inference.training.tactile_loss import TactileLossConfig, tactile_loss
+from touchanything.inference.training.train_config import (
+    OptimizerConfig,
+    SchedulerConfig,
+    SystemConfig,
+    TrainConfig,
+    TrainingConfig,
+    train_config_from_file,
+)
+from touchanything.inference.training.trainer import Trainer, TrainingError
 
 TINY = with_backbone(PRESETS["tiny"], freeze=False)
 
@@ -71,7 +76,8 @@ def test_train_checkpoint_resume_and_eval(data, tmp_path, capsys):
         assert (tmp_path / "run" / name).is_file(), name
     checkpoint = read_checkpoint(tmp_path / "run" / "last.pth")
     assert not (tmp_path / "run" / "checkpoint_epoch_3.pth").exists()
-    assert checkpoint["epoch"] == 2 and set(checkpoint) >= {"model_state_dict", "optimizer_state_dict", "scheduler_state_dict", "loss", "metrics"}
+    assert checkpoint["epoch"] == 2
+    assert set(checkpoint) >= {"model_state_dict", "optimizer_state_dict", "scheduler_state_dict", "loss", "metrics"}
     resumed = Trainer(config(epochs=3), data, tmp_path / "run", log=lambda _: None)
     resumed.resume(tmp_path / "run" / "last.pth")
     assert resumed.start_epoch == 2
@@ -197,7 +203,7 @@ def test_ddp_with_two_cpu_processes(data, tmp_path):
                                    "training": {"num_epochs": 1, "batch_size": 2, "scheduler": {"warmup_epochs": 0}}}))
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MASTER_ADDR": "127.0.0.1"}
     command = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_addr", "127.0.0.1",
-               "--master_port", str(_free_port()), "-m", "app.cli", "train", "--config", str(cfg), "--data", str(data),
+               "--master_port", str(_free_port()), "-m", "touchanything.app.cli", "train", "--config", str(cfg), "--data", str(data),
                "--out", str(tmp_path / "ddp")]
     proc = subprocess.run(command, capture_output=True, text=True, env=env, timeout=600, cwd=Path(__file__).parents[1])
     assert proc.returncode == 0, proc.stderr[-2000:]

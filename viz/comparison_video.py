@@ -7,8 +7,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from devices.video_io import VideoWriter
-from viz.pressure_panel import BACKGROUND, pressure_panel, put_text
+from touchanything.devices.episodes.video_io import VideoWriter
+from touchanything.viz.pressure_panel import BACKGROUND, pressure_panel, put_text
 
 WIDTH, CAMERA_HEIGHT, PANEL_HEIGHT, STRIP_HEIGHT, FOOTER_HEIGHT = 1440, 270, 360, 150, 26
 VIEW_LABELS = {"ego": "Head", "wrist_left": "Left Wrist", "wrist_right": "Right Wrist"}

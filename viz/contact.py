@@ -10,8 +10,8 @@ import functools
 import cv2
 import numpy as np
 
-from inference.metrics import CONTACT_THRESHOLD, contact_frames
-from viz.pressure_panel import BACKGROUND, put_text
+from touchanything.inference.evaluation.metrics import CONTACT_THRESHOLD, contact_frames
+from touchanything.viz.pressure_panel import BACKGROUND, put_text
 
 ON, OFF, UNKNOWN = (60, 200, 90), (90, 90, 110), (60, 60, 80)
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from viz.colormap import PRESSURE_LUT, apply
-from viz.hand_regions import BONES, joint_pressure
+from touchanything.viz.colormap import PRESSURE_LUT, apply
+from touchanything.viz.hand_regions import BONES, joint_pressure
 
 WILOR_FOCAL_PER_PIXEL = 5000.0 / 256.0
 HAND_COLOURS = ((90, 200, 255), (255, 170, 90))

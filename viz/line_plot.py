@@ -4,7 +4,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from viz.pressure_panel import AXES, BACKGROUND, put_text
+from touchanything.viz.pressure_panel import AXES, BACKGROUND, put_text
 
 PLOT_SAMPLES = 300
 """History shown by the plots: 10 s at 30 fps."""

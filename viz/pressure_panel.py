@@ -7,7 +7,7 @@ import functools
 import cv2
 import numpy as np
 
-from viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
+from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
 
 BACKGROUND = (26, 26, 46)
 """The official figure background #1a1a2e."""

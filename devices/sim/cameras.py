@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from devices.sim.shapes import inverse, transform
+from touchanything.devices.sim.shapes import inverse, transform
 
 WIDTH, HEIGHT = 640, 480
 HEAD_HFOV_DEG = 90.0

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from devices.sim.renderer import Lighting
+from touchanything.devices.sim.renderer import Lighting
 
 
 @dataclass(frozen=True)

@@ -7,22 +7,22 @@ from pathlib import Path
 
 import numpy as np
 
-from devices.episode_files import write_camera_matrices
-from devices.episode_writer import EpisodeFrame, RawEpisodeWriter
-from devices.pose_transform import wilor_focal_px, wilor_from_camera
-from devices.sim.cameras import HEIGHT, WIDTH, head_camera, wrist_camera
-from devices.sim.catalogue import BIMANUAL_ACTIONS, CATALOGUE, SCENES, UNSEEN_OBJECTS
-from devices.sim.hand_model import hand_state
-from devices.sim.renderer import Capsules, Lighting, render
-from devices.sim.rig import quat_wxyz, rokoko_joints, tracker_poses
-from devices.sim.shapes import FaceSet
-from devices.sim.task_scripts import SIDES, Planner
-from devices.sim.touch import Glove, cell_pressure
-from devices.sim.visibility import visible
-from devices.sim.world import make_object, object_timeline, static_faces
-from devices.snapshot import FPS
-from devices.tactile_layout import TactileLayout
-from devices.tactile_pipeline import TactileConfig
+from touchanything.devices.episodes.episode_files import write_camera_matrices
+from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
+from touchanything.devices.rig.pose_transform import wilor_focal_px, wilor_from_camera
+from touchanything.devices.sim.cameras import HEIGHT, WIDTH, head_camera, wrist_camera
+from touchanything.devices.sim.catalogue import BIMANUAL_ACTIONS, CATALOGUE, SCENES, UNSEEN_OBJECTS
+from touchanything.devices.sim.hand_model import hand_state
+from touchanything.devices.sim.renderer import Capsules, Lighting, render
+from touchanything.devices.sim.rig import quat_wxyz, rokoko_joints, tracker_poses
+from touchanything.devices.sim.shapes import FaceSet
+from touchanything.devices.sim.task_scripts import SIDES, Planner
+from touchanything.devices.sim.touch import Glove, cell_pressure
+from touchanything.devices.sim.visibility import visible
+from touchanything.devices.sim.world import make_object, object_timeline, static_faces
+from touchanything.devices.snapshot import FPS
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.devices.tactile_pipeline import TactileConfig
 
 WILOR_FOCAL = wilor_focal_px(WIDTH, HEIGHT)
 GLOVE_COLOUR = (44, 44, 50)
@@ -47,7 +47,8 @@ class EpisodeSpec:
 
 @dataclass
 class EpisodeStats:
-    """Counts for the dataset card; contact means a tactile cell above 0.1 (before the glove). contact["<hand>/<action>"] = [frames in contact, frames];
+    """Counts for the dataset card; contact means a tactile cell above 0.1 (before the glove).
+    contact["<hand>/<action>"] = [frames in contact, frames];
     visible["<camera>/<hand>"] = [contact points visible from the camera, contact points of that hand]."""
 
     folder: Path

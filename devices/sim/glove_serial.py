@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from devices.episode import Episode
-from devices.errors import UserError
-from devices.jq_protocol import PACKET_BYTES, FIRST_HALF, encode_sample, sensor_type
-from devices.snapshot import HANDS
+from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.errors import UserError
+from touchanything.devices.hardware.jq_protocol import FIRST_HALF, PACKET_BYTES, encode_sample, sensor_type
+from touchanything.devices.snapshot import HANDS
 
 SampleProvider = Callable[[int], tuple[np.ndarray, np.ndarray]]
 """Sample index → (raw (256,) uint8, quat_wxyz (4,) float32)."""
@@ -91,7 +91,7 @@ class SimulatedGloveSerial:
         self._thread.join()
         self.unplug()
 
-    def __enter__(self) -> "SimulatedGloveSerial":
+    def __enter__(self) -> SimulatedGloveSerial:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from devices.sim.shapes import Shape, transform
+from touchanything.devices.sim.shapes import Shape, transform
 
 FINGER_RADIUS = 0.0085
 PALM_HALF = (0.045, 0.046, 0.013)

@@ -11,8 +11,8 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from devices.sim.cameras import Camera
-from devices.sim.shapes import FaceSet
+from touchanything.devices.sim.cameras import Camera
+from touchanything.devices.sim.shapes import FaceSet
 
 SHIFT = 4
 SCALE = 1 << SHIFT

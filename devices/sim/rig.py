@@ -1,5 +1,5 @@
 """The simulated rig's frames and mounts: how its Rokoko and Vive streams relate to the world, and the
-`[pose]` calibration (devices.pose_transform) that a scene file would carry for it.
+`[pose]` calibration (touchanything.devices.rig.pose_transform) that a scene file would carry for it.
 
 - Rokoko (`rokoko_hands.json`): world joints with the axes reordered (x, z, y), i.e. Studio's Y up,
   Z forward (a left-handed frame: the reordering is a reflection), metres, same origin as the world.
@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from devices.pose_transform import PoseCalibration
-from devices.sim.cameras import HEAD_FOCAL, HEIGHT, WIDTH
-from devices.sim.shapes import inverse, pose_at
+from touchanything.devices.rig.pose_transform import PoseCalibration
+from touchanything.devices.sim.cameras import HEAD_FOCAL, HEIGHT, WIDTH
+from touchanything.devices.sim.shapes import inverse, pose_at
 
 ROKOKO_AXES = (0, 2, 1)
 """Rokoko coordinates = world coordinates in this order."""

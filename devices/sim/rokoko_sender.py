@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from devices.episode import Episode
-from devices.errors import UserError
-from devices.rokoko_protocol import encode_datagram
-from devices.worker_thread import start_worker, stop_worker
+from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.errors import UserError
+from touchanything.devices.hardware.rokoko_protocol import encode_datagram
+from touchanything.devices.worker_thread import start_worker, stop_worker
 
 HandsProvider = Callable[[int], tuple[np.ndarray, np.ndarray]]
 """frame index k → ((2, 21, 3) joints in Studio coordinates, (2,) bool hands present)."""
@@ -87,7 +87,7 @@ class SimulatedRokokoSender:
         self._thread = None
         self._close_socket()
 
-    def __enter__(self) -> "SimulatedRokokoSender":
+    def __enter__(self) -> SimulatedRokokoSender:
         self.start()
         return self
 

@@ -42,12 +42,12 @@ class FaceSet:
     normals: np.ndarray
     colours: np.ndarray
 
-    def moved(self, pose: np.ndarray) -> "FaceSet":
+    def moved(self, pose: np.ndarray) -> FaceSet:
         """The same faces under a 4×4 pose."""
         return FaceSet(transform(pose, self.vertices), self.normals @ pose[:3, :3].T, self.colours)
 
     @staticmethod
-    def concat(sets: list["FaceSet"]) -> "FaceSet":
+    def concat(sets: list[FaceSet]) -> FaceSet:
         sets = [f for f in sets if len(f.vertices)]
         if not sets:
             return FaceSet(np.zeros((0, 4, 3)), np.zeros((0, 3)), np.zeros((0, 3)))

@@ -8,10 +8,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from devices.sim.catalogue import CARRY, GRASP, HOLD_PRESS, PRESS, SLIDE, SQUEEZE
-from devices.sim.hand_model import FINGER_COLUMNS, FINGER_ORDER, PALM_CENTRE, PALM_HALF, THUMB_PAD_ROWS, hand_state
-from devices.sim.motion import HandTrack, frame_rotation
-from devices.sim.shapes import Shape, pose_at
+from touchanything.devices.sim.catalogue import CARRY, GRASP, HOLD_PRESS, PRESS, SLIDE, SQUEEZE
+from touchanything.devices.sim.hand_model import FINGER_COLUMNS, FINGER_ORDER, PALM_CENTRE, PALM_HALF, THUMB_PAD_ROWS, hand_state
+from touchanything.devices.sim.motion import HandTrack, frame_rotation
+from touchanything.devices.sim.shapes import Shape, pose_at
 
 SIDES = ("left", "right")
 PALM_SURFACE = np.array([PALM_CENTRE[0], PALM_CENTRE[1], PALM_HALF[2]])

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from devices.sim.hand_model import HandState
-from devices.sim.shapes import Shape
-from devices.tactile_layout import TactileLayout
+from touchanything.devices.sim.hand_model import HandState
+from touchanything.devices.sim.shapes import Shape
+from touchanything.devices.tactile_layout import TactileLayout
 
 DEPTH_SCALE = 0.005
 FULL_SCALE_RAW = 235.0
@@ -47,7 +47,7 @@ class Glove:
     dead_column: int | None
 
     @classmethod
-    def draw(cls, rng: np.random.Generator, dead_column: int | None) -> "Glove":
+    def draw(cls, rng: np.random.Generator, dead_column: int | None) -> Glove:
         return cls(bias=rng.uniform(0.0, 9.0, (2, 256)), gain=rng.uniform(0.85, 1.15, (2, 256)),
                    noise=float(rng.uniform(0.8, 1.6)), dead_column=dead_column)
 

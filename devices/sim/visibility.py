@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from devices.sim.cameras import Camera
-from devices.sim.hand_model import HandState
-from devices.sim.shapes import Shape, capsule_sdf
+from touchanything.devices.sim.cameras import Camera
+from touchanything.devices.sim.hand_model import HandState
+from touchanything.devices.sim.shapes import Shape, capsule_sdf
 
 MARGIN = 0.005
 TOUCHING = 0.002

@@ -5,8 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from devices.sim.catalogue import CATALOGUE, SceneCategory
-from devices.sim.shapes import FaceSet, Shape, pose_at
+from touchanything.devices.sim.catalogue import CATALOGUE, SceneCategory
+from touchanything.devices.sim.shapes import FaceSet, Shape, pose_at
 
 TABLE_X, TABLE_Y, TILE = (-0.6, 0.6), (-0.3, 0.8), 0.1
 WALL_Y, WALL_TILE = 0.85, 0.2

@@ -1,0 +1,84 @@
+"""`touchanything bench`: the speed/accuracy table of every engine setting (Markdown, JSON, Pareto plot)."""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import onnxruntime
+import torch
+
+from touchanything.app.commands.demo_command import SAMPLE_DIR
+from touchanything.app.sessions.engine_choice import MODELS_DIR
+from touchanything.devices.errors import UserError
+from touchanything.inference.evaluation.bench import BenchPlan, bench_model
+from touchanything.inference.evaluation.bench_data import episode_paths, latency_clip, load_episode
+from touchanything.inference.evaluation.bench_report import markdown, target_checks, write_outputs
+from touchanything.inference.model.checkpoint import load_model
+from touchanything.inference.model.model_config import preset
+from touchanything.inference.model.touch_model import TouchAnything
+
+LATENCY_CLIP_FRAMES = 60
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser("bench", help="measure latency, memory and accuracy of every engine setting")
+    parser.add_argument("--quick", action="store_true",
+                        help="smallest bundled model (torch fp32, ONNX int8) and the paper preset's cache gain")
+    parser.add_argument("--out", type=Path, default=Path("docs/bench"), help="folder for engine.{json,md} and the plot")
+    parser.add_argument("--data", type=Path, default=SAMPLE_DIR,
+                        help="held-out episodes with ground truth (default: the bundled sample)")
+    parser.add_argument("--models", type=Path, nargs="+",
+                        help="model folders holding best_model.pth (default: every bundled model)")
+    parser.add_argument("--frames", type=int, help="accuracy on the first N frames of each episode (quick: 150)")
+    parser.set_defaults(run=run)
+
+
+def bundled_models(folders: list[Path] | None) -> dict[str, TouchAnything]:
+    folders = folders or sorted(p for p in MODELS_DIR.iterdir() if (p / "best_model.pth").is_file())
+    if not folders:
+        raise UserError(f"{MODELS_DIR}: no bundled models; pass --models")
+    models = {Path(f).name: load_model(Path(f) / "best_model.pth") for f in folders}
+    return dict(sorted(models.items(), key=lambda item: sum(p.numel() for p in item[1].parameters())))
+
+
+def machine() -> str:
+    return (f"{os.cpu_count()} CPU cores ({platform.machine()}), torch {torch.__version__}, "
+            f"onnxruntime {onnxruntime.__version__}")
+
+
+def run(args: argparse.Namespace) -> int:
+    frames = args.frames if args.frames is not None else (150 if args.quick else None)
+    if frames is not None and frames < 15:
+        raise UserError(f"--frames must be at least 15 (one 8-frame window), got {frames}")
+    paths = episode_paths(args.data)
+    models = bundled_models(args.models)
+    if args.quick:
+        models = dict(list(models.items())[:1])
+    clip = latency_clip(paths[0], LATENCY_CLIP_FRAMES)
+    started = time.perf_counter()
+    rows, naive = [], {}
+
+    def progress(message: str) -> None:
+        print(f"[{time.perf_counter() - started:6.0f} s] {message}", file=sys.stderr, flush=True)
+
+    for name, model in models.items():
+        episodes = [load_episode(p, model.config.image_size, frames) for p in paths]
+        plan = BenchPlan(args.quick, rounds=4 if args.quick else 20, per_round=10, naive_steps=10 if args.quick else 30)
+        model_rows, naive[name] = bench_model(name, model, episodes, clip, plan, progress)
+        rows += model_rows
+    torch.manual_seed(0)
+    paper_plan = BenchPlan(args.quick, rounds=2, per_round=2, naive_steps=2 if args.quick else 4)
+    paper_rows, naive["paper"] = bench_model("paper", TouchAnything(preset("paper")).eval(), None, clip, paper_plan, progress)
+    rows += paper_rows
+    record = {"machine": machine(), "quick": args.quick, "accuracy_data": str(args.data),
+              "episodes": [str(p) for p in paths], "frames_per_episode": frames, "seconds": time.perf_counter() - started,
+              "rows": rows, "naive_over_streaming": {k: v["ratio"] for k, v in naive.items()}, "naive": naive,
+              "targets": target_checks(rows, naive, next(iter(models)))}
+    written = write_outputs(record, args.out)
+    print(markdown(record))
+    print("written: " + ", ".join(str(p) for p in written))
+    return 0

@@ -1,0 +1,45 @@
+"""`touchanything convert RAW_ROOT OUT_ROOT`: raw EgoTouch folders → HDF5, with a progress bar and reports."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from tqdm import tqdm
+
+from touchanything.devices.episodes.dataset_conversion import CONVERSION_REPORT, QUALITY_REPORT, convert_dataset
+from touchanything.devices.episodes.episode_loader import find_raw_episodes
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser("convert", help="convert raw EgoTouch episode folders to HDF5")
+    parser.add_argument("raw_root", type=Path, help="folder holding <Scene>/<task>/<trajectory_id>/ episodes")
+    parser.add_argument("out_root", type=Path, help="output folder for <Scene>/<task>/<trajectory_id>.hdf5")
+    parser.add_argument("--workers", type=int, default=1, help="trajectories converted in parallel (default 1)")
+    parser.add_argument("--compression-level", type=int, default=4, help="gzip level 0–9, 0 = none (default 4)")
+    parser.add_argument("--skip-existing", action="store_true", help="leave trajectories already converted")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    total = len(find_raw_episodes(args.raw_root)) if args.raw_root.is_dir() else 0
+    with tqdm(total=total, unit="traj", desc="convert") as bar:
+        frames = [0]
+
+        def progress(result) -> None:
+            frames[0] += result.frames
+            bar.set_postfix(frames=frames[0], failed=result.status == "failed" or None)
+            bar.update(1)
+            if result.status == "failed":
+                bar.write(f"failed: {result.error}")
+
+        results = convert_dataset(args.raw_root, args.out_root, args.workers, args.compression_level,
+                                  args.skip_existing, on_result=progress)
+        elapsed = bar.format_dict["elapsed"]
+    done = [r for r in results if r.status == "converted"]
+    failed = [r for r in results if r.status == "failed"]
+    n_frames = sum(r.frames for r in done)
+    rate = n_frames / elapsed if elapsed else 0.0
+    print(f"converted {len(done)}, skipped {len(results) - len(done) - len(failed)}, failed {len(failed)}; "
+          f"{n_frames} frames at {rate:.1f} frames/s")
+    print(f"reports: {args.out_root / CONVERSION_REPORT}, {args.out_root / QUALITY_REPORT}")
+    return 1 if failed else 0

@@ -1,0 +1,44 @@
+"""`touchanything export-onnx`: the streaming engine's per-frame encoder and window head as ONNX graphs."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.inference.engine.engine_runtime import OnnxRuntime, TorchRuntime
+from touchanything.inference.engine.onnx_export import WINDOW, export_onnx
+from touchanything.inference.model.checkpoint import load_model
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser("export-onnx", help="export a checkpoint's streaming graphs to ONNX (fp32, int8)")
+    parser.add_argument("--checkpoint", type=Path, required=True)
+    parser.add_argument("--config", type=Path, help="config.yaml (default: beside the checkpoint)")
+    parser.add_argument("--out", type=Path, required=True, help="output folder (encoder/head graphs, engine.json)")
+    parser.add_argument("--int8", action="store_true", help="also write int8 graphs (dynamic quantisation)")
+    parser.set_defaults(run=run)
+
+
+def agreement(torch_runtime: TorchRuntime, onnx_runtime: OnnxRuntime, size: int, seed: int = 0) -> float:
+    """Max |ONNX − torch| over one random three-view window, both hands."""
+    rng = np.random.default_rng(seed)
+    ids = np.arange(len(VIEW_NAMES), dtype=np.int64)
+    images = [rng.normal(0, 1, (len(ids), 3, size, size)).astype(np.float32) for _ in range(WINDOW)]
+    joints = (rng.normal(0, 2, (1, 42, 3)) + [0, 0, 40]).astype(np.float32)
+    args = (joints, np.arange(42, dtype=np.int64), np.array([WINDOW - 1], np.int64))
+    outputs = [rt.head([rt.encode(im, ids) for im in images], *args) for rt in (torch_runtime, onnx_runtime)]
+    return float(np.abs(outputs[0] - outputs[1]).max())
+
+
+def run(args: argparse.Namespace) -> int:
+    model = load_model(args.checkpoint, args.config)
+    manifest = export_onnx(model, args.out, int8=args.int8, source=str(args.checkpoint))
+    reference = TorchRuntime(model)
+    for precision, files in manifest["files"].items():
+        sizes = ", ".join(f"{name} {(args.out / name).stat().st_size / 1e6:.1f} MB" for name in files.values())
+        difference = agreement(reference, OnnxRuntime(args.out, precision), model.config.image_size)
+        print(f"{precision}: {sizes}; max |ONNX − torch| on a random window: {difference:.2e}")
+    print(f"engine manifest: {args.out / 'engine.json'}")
+    return 0

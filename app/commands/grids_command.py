@@ -1,0 +1,44 @@
+"""`touchanything grids EPISODE...`: (re)compute `pressure_grids.npz` from `jq_pressure.json`."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from touchanything.devices.episodes.episode_writer import write_grids_from_glove
+from touchanything.devices.errors import UserError
+from touchanything.devices.snapshot import HANDS
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.devices.tactile_pipeline import TactileConfig
+
+
+def broken_column(text: str) -> tuple[str, int]:
+    """Parse `HAND:COLUMN`, e.g. `right:9` (display column 0–20)."""
+    hand, _, column = text.partition(":")
+    if hand not in HANDS or not column.isdigit() or not 0 <= int(column) <= 20:
+        raise argparse.ArgumentTypeError(f"expected HAND:COLUMN with HAND left or right and COLUMN 0–20, got {text!r}")
+    return hand, int(column)
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser("grids", help="compute pressure_grids.npz of episodes from their jq_pressure.json")
+    parser.add_argument("episodes", type=Path, nargs="+", help="raw episode folders")
+    parser.add_argument("--layout", type=Path, help="folder with the two mapping files and hand_joint_positions.json "
+                        "(default: the project's own layout)")
+    parser.add_argument("--repair-column", type=broken_column, action="append", default=[], metavar="HAND:COLUMN",
+                        help="interpolate a broken display column from its neighbours (repeatable)")
+    parser.add_argument("--min-scale", type=float, default=TactileConfig.min_scale,
+                        help="smallest normalisation divisor in raw units (default 25)")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if not args.min_scale > 0:
+        raise UserError(f"--min-scale must be positive, got {args.min_scale}")
+    layout = TactileLayout.from_dir(args.layout) if args.layout else TactileLayout.default()
+    config = TactileConfig(broken_columns=tuple(args.repair_column), min_scale=args.min_scale)
+    for folder in args.episodes:
+        grids = write_grids_from_glove(folder, layout, config)
+        print(f"{folder}: {len(grids.grids)} frames; baseline corrected left {grids.baseline_applied[0]}, "
+              f"right {grids.baseline_applied[1]}; tactile max {grids.tactile_max.round(1).tolist()}, "
+              f"bend max {grids.bend_max.round(1).tolist()}")
+    return 0

@@ -1,0 +1,83 @@
+"""`touchanything live --scene FILE`: the live rig of a scene through the engine into the dashboard, or
+with `--headless` for a fixed time with a status line per second (no display needed)."""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser("live", help="the live rig of a scene (devices or the simulated rig) in the dashboard")
+    parser.add_argument("--scene", type=Path, required=True, help="scene file (TOML), e.g. scenes/sim.toml")
+    parser.add_argument("--headless", action="store_true", help="no window: run for --seconds and print status")
+    parser.add_argument("--seconds", type=float, default=10.0, help="how long --headless runs (default 10)")
+    parser.set_defaults(run=run)
+
+
+def open_live_session(scene_path: Path):
+    """The scene's rig and model as a LiveSession (not started); a model that fails to load leaves the
+    session without predictions, with the reason in its message."""
+    from touchanything.app.sessions.engine_choice import build_engine
+    from touchanything.app.sessions.live_session import LiveSession
+    from touchanything.app.sessions.scene import read_scene
+    from touchanything.app.sessions.scene_rig import LiveRig
+    from touchanything.devices.errors import UserError
+    from touchanything.devices.snapshot import VIEW_NAMES
+
+    scene = read_scene(scene_path)
+    try:
+        engine, message = build_engine(scene.model, VIEW_NAMES), ""
+    except UserError as exc:
+        engine, message = None, f"no prediction: {exc}"
+        print(message)
+    return LiveSession(LiveRig(scene), engine, scene.model, message)
+
+
+def run_headless(session, seconds: float) -> dict:
+    """Run the started session for `seconds`, printing one status line per second; returns a summary."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        time.sleep(min(1.0, max(deadline - time.monotonic(), 0)))
+        state = session.state()
+        prediction = state.prediction
+        latency = "-" if prediction is None else f"{prediction.latency_ms:.0f} ms"
+        print(f"{time.strftime('%H:%M:%S')}  rig {session.frames.rate():4.1f} Hz  engine {state.engine_fps:4.1f} fps  "
+              f"latency {latency}  " + "  ".join(f"{row.name}: {'ok' if row.connected else 'DOWN'}" for row in state.sources),
+              flush=True)
+    state = session.state()
+    history = state.history.get("latency_ms", np.zeros(0))
+    summary = {"snapshots": session.frames.count, "predictions": 0 if session.live is None else session.live.stats.processed,
+               "dropped": 0 if session.live is None else session.live.stats.dropped,
+               "latency_p50_ms": float(np.median(history)) if history.size else None, "cumulative": state.cumulative}
+    print(f"summary   {summary['snapshots']} snapshots, {summary['predictions']} predictions, {summary['dropped']} "
+          f"dropped by the engine; latency p50 {summary['latency_p50_ms'] or float('nan'):.0f} ms")
+    if state.cumulative is not None:
+        print("metrics   " + ", ".join(f"{k} {v:.3f}" for k, v in state.cumulative.items() if k in SHOWN_METRICS)
+              + " (against the gloves' live pressure)")
+    return summary
+
+
+def run(args: argparse.Namespace) -> int:
+    from touchanything.viz.dashboard.dashboard import Dashboard
+    from touchanything.viz.display import display_problem
+
+    if not args.headless and (problem := display_problem()):
+        from touchanything.devices.errors import UserError
+
+        raise UserError(f"cannot open the dashboard: {problem}; use --headless")
+    session = open_live_session(args.scene)
+    session.start()
+    if args.headless:
+        try:
+            run_headless(session, args.seconds)
+        finally:
+            session.close()
+    else:
+        stats = Dashboard(session).run()
+        print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
+    return 0

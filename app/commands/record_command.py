@@ -1,0 +1,42 @@
+"""`touchanything record --scene FILE --out DIR [--seconds S]`: the live rig's 30 Hz snapshots written as a
+raw EgoTouch episode folder (crash-safe: a killed recording replays up to its last second)."""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser("record", help="record the live rig of a scene as a raw EgoTouch episode")
+    parser.add_argument("--scene", type=Path, required=True, help="scene file (TOML), e.g. scenes/sim.toml")
+    parser.add_argument("--out", type=Path, required=True, help="the episode folder to create")
+    parser.add_argument("--seconds", type=float, help="stop after this long (default: until Ctrl+C)")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from touchanything.app.sessions.scene import read_scene
+    from touchanything.app.sessions.scene_rig import LiveRig
+    from touchanything.devices.rig.recorder import Recorder, RecorderConfig
+
+    recorder = Recorder(RecorderConfig(args.out))
+    rig = LiveRig(read_scene(args.scene))
+    clock = rig.start()
+    try:
+        recorder.start()
+        clock.subscribe(recorder.write)
+        print(f"recording to {args.out} (Ctrl+C stops)", flush=True)
+        deadline = None if args.seconds is None else time.monotonic() + args.seconds
+        try:
+            while deadline is None or time.monotonic() < deadline:
+                time.sleep(0.5 if deadline is None else min(0.5, max(deadline - time.monotonic(), 0)))
+        except KeyboardInterrupt:
+            pass
+        clock.unsubscribe(recorder.write)
+    finally:
+        rig.stop()
+        counters = recorder.stop() if recorder.is_recording else None
+    if counters is not None:
+        print(f"recorded  {counters.written} frames, {counters.dropped} dropped, to {args.out}")
+    return 0

@@ -1,0 +1,60 @@
+"""`touchanything simulate OUT --episodes N`: generate simulated EgoTouch episodes, split and card."""
+from __future__ import annotations
+
+import argparse
+import shutil
+from pathlib import Path
+
+from tqdm import tqdm
+
+from touchanything.devices.errors import UserError
+from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfig, check_config, simulate_dataset
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser("simulate", help="generate simulated EgoTouch episodes (raw folders), split.json and a dataset card")
+    parser.add_argument("out", type=Path, help="output root (<Scene>/<task>/<id>/ folders are written here)")
+    parser.add_argument("--episodes", type=int, required=True)
+    parser.add_argument("--seconds", type=float, default=10.0, help="length of each episode (default 10)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--workers", type=int, default=1, help="episodes generated in parallel (default 1)")
+    parser.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder")
+    parser.set_defaults(run=run)
+
+
+def prepare_output(out: Path, overwrite: bool) -> None:
+    """An empty, writable output folder (a non-empty one only with --overwrite)."""
+    if out.exists() and not out.is_dir():
+        raise UserError(f"{out}: exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise UserError(f"{out}: folder is not empty (use --overwrite to replace it)")
+        shutil.rmtree(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".write_test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as exc:
+        raise UserError(f"{out}: cannot write the output folder ({exc.strerror})") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    config = SimulationConfig(args.episodes, args.seconds, args.seed, args.workers)
+    check_config(config)
+    prepare_output(args.out, args.overwrite)
+    with tqdm(total=config.episodes, unit="episode", desc="simulate") as bar:
+        frames = [0]
+
+        def progress(stats) -> None:
+            frames[0] += stats.frames
+            bar.update(1)
+            bar.set_postfix(fps=f"{frames[0] / max(bar.format_dict['elapsed'], 1e-9):.1f}")
+
+        card = simulate_dataset(args.out, config, on_episode=progress)
+    print(f"{card['episodes']} episodes, {card['frames']} frames at {card['generation_fps']} frames/s")
+    for camera, v in card["contact_visibility"].items():
+        share = "n/a" if v["share"] is None else f"{100 * v['share']:.1f}%"
+        print(f"contact visible from {camera}: {share} of {v['contact_points']} contact points")
+    print(f"dataset card: {args.out / CARD_MD}; split: {args.out / 'split.json'}")
+    return 0

@@ -1,0 +1,37 @@
+"""`touchanything train --config CFG --data HDF5_ROOT`: train (one process, or several under torchrun)."""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from pathlib import Path
+
+from touchanything.inference.training.train_config import describe_settings, train_config_from_file
+from touchanything.inference.training.trainer import BEST, LAST, Trainer
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser("train", help="train a model on HDF5 trajectories (torchrun for several GPUs)")
+    parser.add_argument("--config", type=Path, required=True, help="training config (official structure)")
+    parser.add_argument("--data", type=Path, required=True, help="HDF5 root holding split.json")
+    parser.add_argument("--split-file", type=Path, help="split file (default: DATA/split.json)")
+    parser.add_argument("--out", type=Path, help="checkpoint folder (default: checkpoints/<time>_<backbone>_<config>)")
+    parser.add_argument("--resume", type=Path, help="continue from a checkpoint of the same run (e.g. OUT/last.pth)")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    config = train_config_from_file(args.config)
+    run_name = f"{time.strftime('%Y%m%d_%H%M%S')}_{config.model.backbone}_tactile_prediction_{args.config.stem}"
+    out = args.out or Path("checkpoints") / run_name
+    if os.environ.get("RANK", "0") == "0":
+        print("\n".join([f"config {args.config}", *describe_settings(config)]), flush=True)
+    trainer = Trainer(config, args.data, out, args.split_file)
+    if args.resume:
+        trainer.resume(args.resume)
+    result = trainer.fit()
+    if trainer.rank == 0:
+        print(f"best validation loss {result.best_val_loss:.4f}; skipped {result.skipped_batches} empty-mask batch(es); "
+              f"checkpoints: {out / BEST}, {out / LAST}")
+        print("view sets seen by the encoder: " + ", ".join(f"{k} {v}" for k, v in sorted(result.view_sets.items())))
+    return 0

@@ -1,0 +1,194 @@
+"""What replay and live sessions share: snapshots handed to the live engine (latest wins), predictions
+paired with the measured pressure of their frame, running official metrics, history for the plots,
+per-stage timings, and the model / view / threshold switches (never blocking the caller)."""
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+from collections import deque
+
+import numpy as np
+
+from touchanything.app.sessions.engine_choice import CPU_TIERS, ModelChoice, build_engine, bundled_models, model_label
+from touchanything.devices.errors import UserError
+from touchanything.devices.rate_meter import RateMeter, StageMeans
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.inference.engine.live_engine import LiveEngine
+from touchanything.inference.engine.prediction import Prediction
+from touchanything.inference.engine.streaming_engine import StreamingEngine
+from touchanything.inference.evaluation.metrics import CONTACT_THRESHOLD
+from touchanything.inference.evaluation.running_metrics import RunningMetrics
+from touchanything.viz.dashboard.dashboard_state import Playback, SessionState, SourceStatus
+from touchanything.viz.line_plot import PLOT_SAMPLES
+
+RECENT_FRAMES = 64
+"""Snapshots kept to pair late predictions with their frame's measured pressure."""
+
+
+class EngineSession:
+    """Subclasses feed `submit(snapshot)` from their source thread and provide `truth_of`, `playback`
+    and `source_rows`. `engine` None (its model failed to load) still shows cameras and measurements."""
+
+    def __init__(self, engine: StreamingEngine | None, choice: ModelChoice, message: str = "") -> None:
+        self.views = tuple(VIEW_NAMES)
+        self.threshold = CONTACT_THRESHOLD
+        self.choice = choice
+        self.bend = TactileLayout.default().bend
+        self.metrics = RunningMetrics(self.bend)
+        self._truth_seen = False
+        self._lock = threading.Lock()
+        self._recent: dict[int, tuple[Snapshot, np.ndarray | None]] = {}
+        self._snapshot: Snapshot | None = None
+        self._prediction: tuple[Prediction, np.ndarray | None] | None = None
+        self._history = {name: deque(maxlen=PLOT_SAMPLES) for name in ("volumetric_iou", "contact_iou", "latency_ms")}
+        self._stages = StageMeans()
+        self.frames, self._predictions = RateMeter(), RateMeter()
+        self.message = message
+        self._loading = False
+        self._model = model_label(choice) if engine is not None else "no model"
+        self.live = LiveEngine(engine, on_prediction=self._on_prediction) if engine is not None else None
+
+    def truth_of(self, snapshot: Snapshot) -> np.ndarray | None:
+        """(2, 21, 21) measured pressure of the snapshot's frame, or None."""
+        raise NotImplementedError
+
+    def playback(self) -> Playback | None:
+        return None
+
+    def source_rows(self, snapshot: Snapshot | None) -> list[SourceStatus]:
+        raise NotImplementedError
+
+    def start_engine(self) -> None:
+        if self.live is not None:
+            self.live.start()
+
+    def stop_engine(self) -> None:
+        """An engine error is reported in the message, not raised (the session is ending)."""
+        if self.live is not None:
+            try:
+                self.live.stop()
+            except Exception as exc:  # shown to the user; the session ends either way
+                self.message = f"engine stopped with an error: {exc}"
+
+    def submit(self, snapshot: Snapshot) -> None:
+        """Source thread: show the snapshot and hand it (with only the views switched on) to the engine."""
+        truth = self.truth_of(snapshot)
+        with self._lock:
+            self._snapshot = snapshot
+            self._recent[snapshot.frame_index] = (snapshot, truth)
+            while len(self._recent) > RECENT_FRAMES:
+                self._recent.pop(next(iter(self._recent)))
+        self.frames.tick()
+        if self.live is not None:
+            images = {v: im for v, im in snapshot.images.items() if v in self.views}
+            self.live.submit(dataclasses.replace(snapshot, images=images))
+
+    def _on_prediction(self, prediction: Prediction) -> None:
+        """Engine thread: keep the prediction, feed the metrics (frames before a seek are ignored)."""
+        with self._lock:
+            if prediction.frame_index not in self._recent:
+                return
+            truth = self._recent[prediction.frame_index][1]
+            self._prediction = (prediction, truth)
+            self._predictions.tick()
+            self._stages.add(prediction.timings_ms)
+            self._history["latency_ms"].append(prediction.latency_ms)
+            if truth is not None and prediction.pressure is not None:
+                self._truth_seen = True
+                self.metrics.add(prediction.pressure, truth)
+                rolling = self.metrics.rolling()
+                self._history["volumetric_iou"].append(rolling["volumetric_iou"])
+                self._history["contact_iou"].append(rolling["contact_iou"])
+
+    def restart(self) -> None:
+        """Forget the window, the pending pairs and the metrics (after a seek or a new session)."""
+        with self._lock:
+            self._recent.clear()
+            self.metrics.reset()
+            for values in self._history.values():
+                values.clear()
+        if self.live is not None:
+            self.live.call(lambda: self.live.engine.reset())
+
+    def state(self) -> SessionState:
+        with self._lock:
+            prediction, truth = self._prediction or (None, None)
+            snapshot, metrics = self._snapshot, self.metrics if self._truth_seen else None
+            rows = self.source_rows(snapshot)
+            if self.live is not None:
+                stats = self.live.stats
+                detail = "loading a model…" if self._loading else f"{stats.processed} processed"
+                rows.append(SourceStatus("engine", self.live.error is None, self._predictions.rate(), None,
+                                         stats.dropped, detail if self.live.error is None else f"error: {self.live.error}"))
+            return SessionState(
+                snapshot=snapshot, prediction=prediction, truth=truth,
+                rolling=metrics.rolling() if metrics else None, cumulative=metrics.cumulative() if metrics else None,
+                metric_frames=self.metrics.frames,
+                history={name: np.array(values, np.float64) for name, values in self._history.items()},
+                stage_ms=self._stages.means(), engine_fps=self._predictions.rate(), sources=tuple(rows),
+                playback=self.playback(), model=self._model, message=self.message,
+                recording=self.recording_status())
+
+    def recording_status(self) -> str | None:
+        return None
+
+    @staticmethod
+    def age_ms(t_us: int | None) -> float | None:
+        return None if t_us is None else time.monotonic() * 1e3 - t_us / 1e3
+
+    def set_views(self, views: tuple[str, ...]) -> None:
+        """Views the model may use from the next frame on ("ego" off: no prediction, with the reason)."""
+        self.views = tuple(v for v in VIEW_NAMES if v in views)
+
+    def set_threshold(self, threshold: float) -> None:
+        """Contact threshold for the metrics and indicators (official 0.1); the metrics restart."""
+        if not 0.0 < threshold < 1.0:
+            raise UserError(f"contact threshold must lie in (0, 1), got {threshold}")
+        with self._lock:
+            self.threshold = threshold
+            self.metrics = RunningMetrics(self.bend, threshold=threshold)
+
+    def models(self) -> tuple[str, ...]:
+        names = tuple(bundled_models())
+        return names if self._bundled_name() else names + (str(self.choice.checkpoint),)
+
+    def tiers(self) -> tuple[str, ...]:
+        return CPU_TIERS
+
+    def current_model(self) -> tuple[str, str]:
+        return self._bundled_name() or str(self.choice.checkpoint), self.choice.tier
+
+    def _bundled_name(self) -> str | None:
+        for name, path in bundled_models().items():
+            if path.resolve() == self.choice.checkpoint.resolve():
+                return name
+        return None
+
+    def set_model(self, model: str, tier: str) -> None:
+        """Load `model` (a bundled name or the session's checkpoint) at `tier` on a background thread; the
+        old engine keeps running until the new one is ready, and keeps running if it fails."""
+        if self._loading:
+            self.message = "still loading the previous choice"
+            return
+        path = bundled_models().get(model)
+        choice = (ModelChoice(path) if path is not None else self.choice).with_tier(tier)
+        self._loading = True
+        self.message = f"loading {model_label(choice)}…"
+        threading.Thread(target=self._load, args=(choice,), name="touchanything-load", daemon=True).start()
+
+    def _load(self, choice: ModelChoice) -> None:
+        try:
+            engine = build_engine(choice, VIEW_NAMES)
+        except (UserError, OSError, RuntimeError) as exc:
+            self.message = f"kept {self._model}: {exc}"
+            return
+        finally:
+            self._loading = False
+        if self.live is None:
+            self.live = LiveEngine(engine, on_prediction=self._on_prediction).start()
+        else:
+            self.live.replace_engine(engine)
+        self.choice, self._model = choice, model_label(choice)
+        self.message = f"running {self._model}"

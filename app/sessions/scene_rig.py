@@ -1,0 +1,95 @@
+"""The live rig of a scene: its sources connected in order (a failed connect disconnects the ones already
+up), the simulated rig first when the scene has one, and the 30 Hz rig clock over them."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+
+from touchanything.app.sessions.scene import Scene
+from touchanything.devices.errors import UserError
+from touchanything.devices.hardware.jq_glove import JQGlove
+from touchanything.devices.hardware.oak_camera import OakCamera, OakCameraConfig
+from touchanything.devices.hardware.opencv_camera import OpenCVCamera
+from touchanything.devices.hardware.openvr_trackers import OpenVRTrackers
+from touchanything.devices.hardware.rokoko_udp import RokokoReceiver
+from touchanything.devices.rig.pose_transform import PoseCalibration, mocap_to_model_frame
+from touchanything.devices.rig.rig_clock import RigClock
+from touchanything.devices.rig.rig_inputs import RigInput, camera_fill, glove_fill, mocap_fill, trackers_fill
+from touchanything.devices.sim.device_emulator import SimulatedLiveRig
+
+
+@dataclass
+class _Source:
+    name: str
+    device: object
+    input: RigInput
+
+
+class LiveRig:
+    """`start()` connects everything and starts the clock (returned); `stop()` undoes it in reverse.
+    `sources` maps each source name to its device (for status rows)."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.simulator = SimulatedLiveRig(scene.simulator) if scene.simulator is not None else None
+        self.clock: RigClock | None = None
+        self._sources: list[_Source] = []
+
+    @property
+    def sources(self) -> dict[str, object]:
+        return {source.name: source.device for source in self._sources}
+
+    def _plan(self) -> list[_Source]:
+        scene, plan = self.scene, []
+        for view, config in scene.cameras.items():
+            camera = OakCamera(config) if isinstance(config, OakCameraConfig) else OpenCVCamera(config)
+            plan.append(_Source(view, camera, RigInput(view, camera, camera_fill(view))))
+        for hand, config in scene.gloves.items():
+            glove = JQGlove(config)
+            plan.append(_Source(f"glove_{hand}", glove, RigInput(f"glove_{hand}", glove, glove_fill(hand))))
+        trackers = OpenVRTrackers(scene.trackers) if scene.trackers is not None else \
+            (self.simulator.trackers if self.simulator is not None else None)
+        if trackers is not None:
+            plan.append(_Source("trackers", trackers, RigInput("trackers", trackers, trackers_fill())))
+        if scene.hands is not None:
+            if not scene.pose:
+                raise UserError(f"{scene.path}: [hands] needs a [pose] calibration to bring the mocap joints "
+                                "into the head-camera frame")
+            to_model = partial(_model_frame, calibration=PoseCalibration.from_dict(scene.pose))
+            mocap = RokokoReceiver(scene.hands)
+            plan.append(_Source("mocap", mocap, RigInput("mocap", mocap, mocap_fill(to_model))))
+        return plan
+
+    def start(self) -> RigClock:
+        try:
+            if self.simulator is not None:
+                self.simulator.start()
+            for source in self._plan():
+                source.device.connect()
+                self._sources.append(source)
+            self.clock = RigClock([s.input for s in self._sources], self.scene.clock)
+            self.clock.start()
+        except BaseException:
+            self.stop()
+            raise
+        return self.clock
+
+    def stop(self) -> None:
+        if self.clock is not None:
+            self.clock.stop()
+            self.clock = None
+        while self._sources:
+            self._sources.pop().device.disconnect()
+        if self.simulator is not None:
+            self.simulator.stop()
+
+    def __enter__(self) -> RigClock:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def _model_frame(mocap, present, trackers, calibration: PoseCalibration):
+    hands = mocap_to_model_frame(mocap, present, trackers, calibration)
+    return hands.joints, hands.valid

@@ -1,0 +1,92 @@
+"""Convert a whole raw EgoTouch root to HDF5 with worker processes, and write the two reports."""
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+from touchanything.devices.episodes.episode_loader import find_raw_episodes
+from touchanything.devices.episodes.hdf5_convert import ConversionResult, convert_trajectory, output_path
+from touchanything.devices.errors import UserError
+
+CONVERSION_REPORT = "conversion_report.txt"
+QUALITY_REPORT = "quality_report.txt"
+SPLIT_FILE = "split.json"
+
+
+def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compression_level: int = 4,
+                    skip_existing: bool = False,
+                    on_result: Callable[[ConversionResult], None] | None = None) -> list[ConversionResult]:
+    """Convert every trajectory under `raw_root`; one bad trajectory never stops the others."""
+    raw_root, out_root = Path(raw_root), Path(out_root)
+    if not raw_root.is_dir():
+        raise UserError(f"{raw_root}: raw root folder not found")
+    if not 0 <= compression_level <= 9:
+        raise UserError(f"--compression-level must be 0–9 (0 = none), got {compression_level}")
+    if workers < 1:
+        raise UserError(f"--workers must be at least 1, got {workers}")
+    folders = find_raw_episodes(raw_root)
+    if not folders:
+        raise UserError(f"{raw_root}: no trajectories found (folders holding chest.mp4, up to 4 levels deep)")
+    try:
+        out_root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{out_root}: cannot create the output folder ({exc.strerror})") from None
+    results, todo = [], []
+    for folder in folders:
+        target = output_path(folder, raw_root, out_root)
+        if skip_existing and target.exists():
+            results.append(ConversionResult(folder, target, "skipped"))
+        else:
+            todo.append((folder, target))
+    for result in results:
+        on_result and on_result(result)
+    for result in _run(todo, workers, compression_level):
+        results.append(result)
+        on_result and on_result(result)
+    results.sort(key=lambda r: str(r.source))
+    write_reports(out_root, results)
+    copy_split(raw_root, out_root)
+    return results
+
+
+def copy_split(raw_root: Path, out_root: Path) -> None:
+    """A `split.json` shipped with the raw data moves into the HDF5 root (as the official release does);
+    an existing one there is kept."""
+    source, target = raw_root / SPLIT_FILE, out_root / SPLIT_FILE
+    if source.is_file() and not target.exists():
+        shutil.copyfile(source, target)
+
+
+def _run(todo: list[tuple[Path, Path]], workers: int, level: int):
+    if workers == 1 or len(todo) <= 1:
+        for folder, target in todo:
+            yield convert_trajectory(folder, target, level)
+        return
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = [pool.submit(convert_trajectory, folder, target, level) for folder, target in todo]
+        for future in as_completed(futures):
+            yield future.result()
+
+
+def write_reports(out_root: Path, results: list[ConversionResult]) -> None:
+    """`conversion_report.txt` (status per trajectory) and `quality_report.txt` (problems, quality)."""
+    counts = {s: sum(r.status == s for r in results) for s in ("converted", "skipped", "failed")}
+    frames = sum(r.frames for r in results)
+    seconds = sum(r.seconds for r in results)
+    lines = [f"converted {counts['converted']}, skipped {counts['skipped']}, failed {counts['failed']}; "
+             f"{frames} frames in {seconds:.1f} s of work ({frames / seconds if seconds else 0:.1f} frames/s)", ""]
+    for r in results:
+        detail = r.error if r.status == "failed" else f"{r.frames} frames, {r.seconds:.1f} s"
+        lines.append(f"{r.status:9s} {r.source} -> {r.output}: {detail}")
+    (out_root / CONVERSION_REPORT).write_text("\n".join(lines) + "\n")
+    quality = []
+    for r in results:
+        if r.status != "converted":
+            continue
+        q = r.quality
+        quality.append(f"{r.output}: wilor valid {q.get('wilor_valid_ratio', 0):.1%}, duplicate wrist frames "
+                       f"left {q.get('left', -1):.2f} right {q.get('right', -1):.2f}")
+        quality += [f"  problem: {p}" for p in r.problems]
+    (out_root / QUALITY_REPORT).write_text("\n".join(quality) + "\n")

@@ -1,0 +1,116 @@
+"""`split.json` (train / val / test_seen / test_unseen): reading, writing, and the official split builder."""
+from __future__ import annotations
+
+import json
+import os
+import random
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from touchanything.devices.episodes.episode_loader import find_hdf5_files
+from touchanything.devices.episodes.hdf5_episode import WILOR_VALID_KEYS
+from touchanything.devices.errors import DataError, UserError
+
+SPLIT_KEYS = ("train", "val", "test_seen", "test_unseen")
+
+
+def read_split(path: Path) -> dict[str, list[Path]]:
+    """Read a split file; relative paths are taken relative to the split file's folder."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise DataError(path, None, "file not found") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataError(path, None, f"not a readable JSON file ({exc})") from None
+    if not isinstance(data, dict):
+        raise DataError(path, None, f"expected an object with keys {', '.join(SPLIT_KEYS)}")
+    split = {}
+    for key in SPLIT_KEYS:
+        entries = data.get(key, [])
+        if not isinstance(entries, list) or not all(isinstance(e, str) for e in entries):
+            raise DataError(path, key, "expected a list of file paths")
+        split[key] = [(path.parent / e) if not Path(e).is_absolute() else Path(e) for e in entries]
+    return split
+
+
+def write_split(path: Path, split: dict[str, list[Path]], absolute: bool = False) -> None:
+    """Write a split file with paths relative to its folder (or absolute, as the official tool does)."""
+    path = Path(path)
+    base = path.parent.resolve()
+
+    def name(p: Path) -> str:
+        resolved = Path(p).resolve()
+        return str(resolved) if absolute else os.path.relpath(resolved, base)
+
+    text = json.dumps({key: [name(p) for p in split.get(key, [])] for key in SPLIT_KEYS}, indent=1) + "\n"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    except OSError as exc:
+        raise UserError(f"{path}: cannot write the split file ({exc.strerror})") from None
+
+
+@dataclass(frozen=True)
+class SplitConfig:
+    """The official defaults: seed 42, 5 % of each scene's tasks unseen, ≥ 30 frames, ≥ 30 % pose-valid."""
+
+    seed: int = 42
+    unseen_ratio: float = 0.05
+    min_frames: int = 30
+    min_wilor_valid: float = 0.3
+
+
+def quality_problem(path: Path, config: SplitConfig) -> str | None:
+    """Why a trajectory fails the quality filter, or None. Pose-valid = at least one valid WiLoR hand."""
+    try:
+        with h5py.File(path, "r") as file:
+            frames = int(file["metadata"].attrs["num_frames"])
+            valid = np.stack([file[k][()] for k in WILOR_VALID_KEYS], axis=1).astype(bool)
+    except (OSError, KeyError, ValueError) as exc:
+        return f"unreadable ({exc})"
+    if frames < config.min_frames:
+        return f"{frames} frames < {config.min_frames}"
+    ratio = float(valid.any(axis=1).mean()) if len(valid) else 0.0
+    return None if ratio >= config.min_wilor_valid else f"WiLoR valid ratio {ratio:.2f} < {config.min_wilor_valid}"
+
+
+def build_split(hdf5_root: Path, config: SplitConfig = SplitConfig()) -> tuple[dict[str, list[Path]], dict[Path, str]]:
+    """The official algorithm: unseen tasks per scene, then a seeded shuffle into test_seen / val / train.
+
+    Files are `<root>/<Scene>/<Task>/<id>.hdf5`. Returns the split and the excluded files with reasons.
+    """
+    if not 0.0 <= config.unseen_ratio < 1.0:
+        raise UserError(f"--unseen-ratio must be in [0, 1), got {config.unseen_ratio}")
+    files = find_hdf5_files(hdf5_root)
+    if not files:
+        raise UserError(f"{hdf5_root}: no .hdf5 trajectories found")
+    excluded = {f: reason for f in files if (reason := quality_problem(f, config))}
+    kept = [f for f in files if f not in excluded]
+    rng = random.Random(config.seed)
+    tasks_by_scene: dict[str, set[str]] = {}
+    for f in kept:
+        tasks_by_scene.setdefault(f.parent.parent.name, set()).add(f"{f.parent.parent.name}/{f.parent.name}")
+    unseen: set[str] = set()
+    for scene in sorted(tasks_by_scene):
+        tasks = sorted(tasks_by_scene[scene])
+        if len(tasks) >= 2:
+            rng.shuffle(tasks)
+            unseen.update(tasks[: max(1, int(len(tasks) * config.unseen_ratio))])
+    split = partition_seen([f for f in kept if f"{f.parent.parent.name}/{f.parent.name}" not in unseen], rng)
+    split["test_unseen"] = sorted(f for f in kept if f"{f.parent.parent.name}/{f.parent.name}" in unseen)
+    return split, excluded
+
+
+def partition_seen(items: list, rng: random.Random) -> dict[str, list]:
+    """The official seen partition: shuffle, then test_seen = first max(1, int(N · 0.1)), val = next
+    max(1, int((N − n_ts) / 9)), train = the rest (each list sorted)."""
+    items = list(items)
+    rng.shuffle(items)
+    n_seen = max(1, int(len(items) * 0.1))
+    n_val = max(1, int((len(items) - n_seen) / 9))
+    return {"train": sorted(items[n_seen + n_val:]), "val": sorted(items[n_seen:n_seen + n_val]),
+            "test_seen": sorted(items[:n_seen])}

@@ -1,0 +1,171 @@
+"""The non-video, non-JSONL files of a raw EgoTouch episode: pressure grids, masks, quality, intrinsics."""
+from __future__ import annotations
+
+import json
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from touchanything.devices.errors import DataError
+from touchanything.devices.snapshot import HANDS
+
+GRID_KEYS = ("left_pressure_grid", "right_pressure_grid")
+MAXIMA_KEYS = ("tactile_max_left", "tactile_max_right", "bend_max_left", "bend_max_right")
+
+
+@dataclass
+class PressureFile:
+    """grids: (T, 2, 21, 21) float32 [left, right], NaN outside the layout; attrs: the npz scalars."""
+
+    grids: np.ndarray
+    attrs: dict = field(default_factory=dict)
+
+
+def _load_npz(path: Path) -> dict[str, np.ndarray]:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {key: data[key] for key in data.files}
+    except FileNotFoundError:
+        raise DataError(path, None, "file not found") from None
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise DataError(path, None, f"not a readable .npz file ({exc})") from None
+
+
+def _require(path: Path, data: dict, key: str, ndim: int, kinds: str) -> np.ndarray:
+    if key not in data:
+        raise DataError(path, key, "missing array")
+    array = data[key]
+    if array.ndim != ndim or array.dtype.kind not in kinds:
+        raise DataError(path, key, f"has shape {array.shape} and dtype {array.dtype}, expected {ndim} dims of kind {kinds!r}")
+    return array
+
+
+def read_pressure_grids(path: Path) -> PressureFile:
+    """Read `pressure_grids.npz` (official layout); checks shapes and dtypes."""
+    data = _load_npz(path)
+    left = _require(path, data, GRID_KEYS[0], 3, "f")
+    right = _require(path, data, GRID_KEYS[1], 3, "f")
+    for key, grid in zip(GRID_KEYS, (left, right)):
+        if grid.shape[1:] != (21, 21):
+            raise DataError(path, key, f"has shape {grid.shape}, expected (T, 21, 21)")
+    if left.shape[0] != right.shape[0]:
+        raise DataError(path, GRID_KEYS[1], f"has {right.shape[0]} frames but {GRID_KEYS[0]} has {left.shape[0]}")
+    attrs = {key: data[key].item() for key in data if key not in GRID_KEYS and data[key].ndim == 0}
+    return PressureFile(np.stack([left, right], axis=1).astype(np.float32), attrs)
+
+
+def save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Compressed .npz like `np.savez_compressed`, but byte-identical for identical arrays (fixed zip
+    timestamps), so the same simulation seed gives the same files."""
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for key, value in arrays.items():
+            info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            with archive.open(info, "w", force_zip64=True) as handle:
+                np.lib.format.write_array(handle, np.asanyarray(value), allow_pickle=False)
+
+
+def write_pressure_grids(path: Path, grids: np.ndarray, baseline_applied: np.ndarray | None = None,
+                         tactile_max: np.ndarray | None = None, bend_max: np.ndarray | None = None) -> None:
+    """Write (T, 2, 21, 21) grids in the official npz layout; maxima given → separate_normalization."""
+    grids = np.asarray(grids, np.float32)
+    out: dict[str, np.ndarray] = {
+        GRID_KEYS[0]: grids[:, 0], GRID_KEYS[1]: grids[:, 1],
+        "grid_size": np.int64(21), "num_frames": np.int64(grids.shape[0]),
+        "separate_normalization": np.bool_(tactile_max is not None),
+    }
+    if tactile_max is not None and bend_max is not None:
+        for h, hand in enumerate(HANDS):
+            out[f"tactile_max_{hand}"] = np.float64(tactile_max[h])
+            out[f"bend_max_{hand}"] = np.float64(bend_max[h])
+    if baseline_applied is not None:
+        for h, hand in enumerate(HANDS):
+            out[f"baseline_corrected_{hand}"] = np.bool_(baseline_applied[h])
+    save_npz(path, out)
+
+
+@dataclass
+class Masks:
+    """masks: (T, N, H, W) uint8; obj_ids: (T, N) int32; valid_frames: (T,) bool."""
+
+    masks: np.ndarray
+    obj_ids: np.ndarray
+    valid_frames: np.ndarray
+
+
+def read_masks(path: Path) -> Masks:
+    """Read `masks.npz` (official keys masks, obj_ids, valid_frames)."""
+    data = _load_npz(path)
+    masks = _require(path, data, "masks", 4, "ub")
+    obj_ids = _require(path, data, "obj_ids", 2, "iu")
+    valid = _require(path, data, "valid_frames", 1, "b")
+    if not (masks.shape[0] == obj_ids.shape[0] == valid.shape[0]) or masks.shape[1] != obj_ids.shape[1]:
+        raise DataError(path, "masks", f"shapes disagree: masks {masks.shape}, obj_ids {obj_ids.shape}, valid_frames {valid.shape}")
+    return Masks(masks.astype(np.uint8), obj_ids.astype(np.int32), valid.astype(bool))
+
+
+def write_masks(path: Path, masks: Masks) -> None:
+    save_npz(path, {"masks": masks.masks, "obj_ids": masks.obj_ids, "valid_frames": masks.valid_frames})
+
+
+def read_quality(path: Path) -> dict[str, float]:
+    """`quality_issues.json` → {"left": ratio, "right": ratio} of duplicate wrist frames (−1 if unknown)."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise DataError(path, None, "file not found") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataError(path, None, f"not a readable JSON file ({exc})") from None
+    ratios = {}
+    for side in HANDS:
+        try:
+            ratios[side] = float(data["duplicate_frames"][side]["ratio"])
+        except (TypeError, KeyError, ValueError):
+            ratios[side] = -1.0
+    return ratios
+
+
+def write_quality(path: Path, duplicate_ratio: dict[str, float]) -> None:
+    data = {"duplicate_frames": {side: {"ratio": float(r)} for side, r in duplicate_ratio.items()}}
+    Path(path).write_text(json.dumps(data, indent=1))
+
+
+def read_camera_matrices(path: Path) -> dict[str, np.ndarray]:
+    """`camera_matrix.txt` → {camera: (3, 3) float64}.
+
+    The file holds one or more 3×3 matrices, each after a `# <camera>` line (chest, left, right); a bare
+    3×3 matrix without a name is the chest camera's.
+    """
+    try:
+        lines = Path(path).read_text().splitlines()
+    except FileNotFoundError:
+        raise DataError(path, None, "file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(path, None, f"not a readable text file ({exc})") from None
+    blocks: dict[str, list[list[float]]] = {}
+    name = "chest"
+    for number, line in enumerate(lines, start=1):
+        text = line.strip()
+        if text.startswith("#"):
+            name = text.lstrip("#").strip()
+        elif text:
+            try:
+                blocks.setdefault(name, []).append([float(v) for v in text.split()])
+            except ValueError:
+                raise DataError(path, f"line {number}", "expected numbers") from None
+    matrices = {}
+    for camera, rows in blocks.items():
+        matrix = np.array(rows, dtype=np.float64) if all(len(r) == 3 for r in rows) else None
+        if matrix is None or matrix.shape != (3, 3) or not np.all(np.isfinite(matrix)):
+            raise DataError(path, camera, "expected a 3×3 matrix of finite numbers")
+        matrices[camera] = matrix
+    return matrices
+
+
+def write_camera_matrices(path: Path, matrices: dict[str, np.ndarray]) -> None:
+    with open(path, "w") as handle:
+        for camera, matrix in matrices.items():
+            handle.write(f"# {camera}\n")
+            np.savetxt(handle, np.asarray(matrix, np.float64), fmt="%.9g")

@@ -1,0 +1,181 @@
+"""The JSON-lines streams of a raw EgoTouch episode: hand poses, Vive trackers and JQ glove samples.
+
+Schemas (one object per line; the line number is the frame index):
+- `wilor_hands.json`, `rokoko_hands.json`: `{"frame_index", "left_pos": 21×3 | [], "right_pos": 21×3 | []}`.
+- `vive_poses.json`: `{"frame_index", "poses": {role: {"trans": [3], "rot": [4]}}}` for roles chest,
+  left_wrist, right_wrist; quaternion order w, x, y, z.
+- `jq_pressure.json` (the official schema is not released; this is ours): `{"frame_index",
+  "timestamp_us", "left": {"raw": 256 ints 0–255, "quat_wxyz": [4]} | null, "right": … | null}`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from touchanything.devices.episodes.jsonl import FieldProblems, read_jsonl
+from touchanything.devices.hand_pose import JOINTS_PER_HAND, hand_from_json
+from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
+
+IDENTITY_WXYZ = (1.0, 0.0, 0.0, 0.0)
+
+
+def fit_length(array: np.ndarray, frames: int, fill: float | bool = 0) -> np.ndarray:
+    """Cut or pad (with `fill`) the first axis of `array` to `frames`."""
+    if array.shape[0] >= frames:
+        return array[:frames]
+    pad = np.full((frames - array.shape[0],) + array.shape[1:], fill, dtype=array.dtype)
+    return np.concatenate([array, pad])
+
+
+@dataclass
+class HandStream:
+    """joints: (N, 2, 21, 3) float32 (zeros where invalid); valid: (N, 2) bool."""
+
+    joints: np.ndarray
+    valid: np.ndarray
+
+    def fit(self, frames: int) -> HandStream:
+        """Cut or pad (invalid) to `frames`."""
+        return HandStream(fit_length(self.joints, frames), fit_length(self.valid, frames, False))
+
+
+@dataclass
+class TrackerStream:
+    """poses: (N, 3, 7) float32 trans + rot per role (zeros where missing); valid: (N, 3) bool."""
+
+    poses: np.ndarray
+    valid: np.ndarray
+
+    def fit(self, frames: int) -> TrackerStream:
+        """Cut or pad (invalid) to `frames`."""
+        return TrackerStream(fit_length(self.poses, frames), fit_length(self.valid, frames, False))
+
+
+@dataclass
+class GloveStream:
+    """raw: (N, 2, 256) uint8; present: (N, 2) bool; quat_wxyz: (N, 2, 4) float32; timestamps_us: (N,)."""
+
+    raw: np.ndarray
+    present: np.ndarray
+    quat_wxyz: np.ndarray
+    timestamps_us: np.ndarray | None
+
+    def fit(self, frames: int) -> GloveStream:
+        """Cut or pad (absent, identity quaternion) to `frames`."""
+        quat = fit_length(self.quat_wxyz, frames, 0.0)
+        quat[np.all(quat == 0, axis=-1)] = IDENTITY_WXYZ
+        stamps = self.timestamps_us
+        return GloveStream(fit_length(self.raw, frames), fit_length(self.present, frames, False), quat,
+                           None if stamps is None or len(stamps) < frames else stamps[:frames])
+
+
+def read_hands(path: Path) -> tuple[HandStream, list[str]]:
+    """Read a WiLoR or Rokoko stream; a hand failing the official validity rule is invalid (zeros)."""
+    rows, problems = read_jsonl(path)
+    joints = np.zeros((len(rows), 2, JOINTS_PER_HAND, 3), np.float32)
+    valid = np.zeros((len(rows), 2), bool)
+    bad = FieldProblems(path)
+    for i, row in enumerate(rows):
+        for h, hand in enumerate(HANDS):
+            value = (row or {}).get(f"{hand}_pos")
+            joints[i, h], valid[i, h] = hand_from_json(value)
+            if value not in (None, []) and not valid[i, h]:
+                bad.add(f"{hand}_pos", i + 1, "not 21 finite joints within the official bounds; hand marked invalid")
+    return HandStream(joints, valid), problems + bad.lines()
+
+
+def hands_row(frame_index: int, joints: np.ndarray, valid: np.ndarray) -> dict:
+    """One line of a hands stream from (2, 21, 3) joints and (2,) validity."""
+    row: dict = {"frame_index": int(frame_index)}
+    for h, hand in enumerate(HANDS):
+        row[f"{hand}_pos"] = np.asarray(joints[h], np.float32).tolist() if valid[h] else []
+    return row
+
+
+def _floats(value: object, size: int) -> np.ndarray | None:
+    try:
+        out = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    return out if out.shape == (size,) and np.all(np.isfinite(out)) else None
+
+
+def read_trackers(path: Path) -> tuple[TrackerStream, list[str]]:
+    """Read `vive_poses.json`; a role that is missing or malformed gives 7 zeros and valid = False."""
+    rows, problems = read_jsonl(path)
+    poses = np.zeros((len(rows), len(TRACKER_ROLES), 7), np.float32)
+    valid = np.zeros((len(rows), len(TRACKER_ROLES)), bool)
+    bad = FieldProblems(path)
+    for i, row in enumerate(rows):
+        entries = (row or {}).get("poses") or {}
+        for r, role in enumerate(TRACKER_ROLES):
+            entry = entries.get(role) if isinstance(entries, dict) else None
+            if entry is None:
+                continue
+            trans = _floats(entry.get("trans") if isinstance(entry, dict) else None, 3)
+            rot = _floats(entry.get("rot") if isinstance(entry, dict) else None, 4)
+            if trans is None or rot is None:
+                bad.add(f"poses.{role}", i + 1, "expected trans[3] and rot[4] finite numbers")
+                continue
+            poses[i, r] = np.concatenate([trans, rot])
+            valid[i, r] = True
+    return TrackerStream(poses, valid), problems + bad.lines()
+
+
+def trackers_row(frame_index: int, poses: np.ndarray, valid: np.ndarray) -> dict:
+    """One line of `vive_poses.json` from (3, 7) poses and (3,) validity."""
+    entries = {
+        role: {"trans": poses[r, :3].tolist(), "rot": poses[r, 3:].tolist()}
+        for r, role in enumerate(TRACKER_ROLES) if valid[r]
+    }
+    return {"frame_index": int(frame_index), "poses": entries}
+
+
+def _glove_sample(entry: object) -> tuple[np.ndarray, np.ndarray] | None:
+    if not isinstance(entry, dict):
+        return None
+    raw = _floats(entry.get("raw"), 256)
+    if raw is None or raw.min() < 0 or raw.max() > 255 or np.any(raw != np.round(raw)):
+        return None
+    quat = _floats(entry.get("quat_wxyz", IDENTITY_WXYZ), 4)
+    return raw.astype(np.uint8), (quat if quat is not None else np.array(IDENTITY_WXYZ))
+
+
+def read_glove(path: Path) -> tuple[GloveStream, list[str]]:
+    """Read `jq_pressure.json`; a malformed hand sample counts as absent in that frame."""
+    rows, problems = read_jsonl(path)
+    n = len(rows)
+    raw = np.zeros((n, 2, 256), np.uint8)
+    present = np.zeros((n, 2), bool)
+    quat = np.tile(np.array(IDENTITY_WXYZ, np.float32), (n, 2, 1))
+    stamps = np.full(n, -1, np.int64)
+    bad = FieldProblems(path)
+    for i, row in enumerate(rows):
+        row = row or {}
+        if isinstance(row.get("timestamp_us"), int):
+            stamps[i] = row["timestamp_us"]
+        for h, hand in enumerate(HANDS):
+            if row.get(hand) is None:
+                continue
+            sample = _glove_sample(row[hand])
+            if sample is None:
+                bad.add(hand, i + 1, "expected raw[256] integers 0–255 and quat_wxyz[4]; sample dropped")
+                continue
+            raw[i, h], quat[i, h] = sample
+            present[i, h] = True
+    timestamps = stamps if n and np.all(stamps >= 0) else None
+    return GloveStream(raw, present, quat, timestamps), problems + bad.lines()
+
+
+def glove_row(frame_index: int, timestamp_us: int, raw: np.ndarray, present: np.ndarray,
+              quat_wxyz: np.ndarray) -> dict:
+    """One line of `jq_pressure.json` from (2, 256) uint8 raw, (2,) presence and (2, 4) quaternions."""
+    row: dict = {"frame_index": int(frame_index), "timestamp_us": int(timestamp_us)}
+    for h, hand in enumerate(HANDS):
+        row[hand] = (
+            {"raw": np.asarray(raw[h], np.uint8).tolist(), "quat_wxyz": np.asarray(quat_wxyz[h], np.float32).tolist()}
+            if present[h] else None
+        )
+    return row

@@ -1,0 +1,183 @@
+"""Convert raw EgoTouch episode folders to HDF5 trajectories in the official schema.
+
+Output: `<out>/<Scene>/<Task>/<trajectory_id>.hdf5`, written to a `.partial` file and renamed when
+complete, so a failed or interrupted conversion never leaves a half-written trajectory behind.
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.episodes.episode_files import MAXIMA_KEYS, read_masks, read_quality
+from touchanything.devices.episodes.hdf5_episode import (
+    GRID_KEYS,
+    IMAGE_KEYS,
+    MASK_KEYS,
+    ROKOKO_KEYS,
+    TRACKER_KEYS,
+    WILOR_KEYS,
+    WILOR_VALID_KEYS,
+)
+from touchanything.devices.episodes.raw_episode import MASKS_FILE, QUALITY_FILE, REQUIRED_FILES, WILOR_FILE, open_raw_episode
+from touchanything.devices.errors import DataError
+
+DUPLICATE_ISSUE_RATIO = 0.20
+
+
+@dataclass
+class ConversionResult:
+    """status: converted | skipped | failed."""
+
+    source: Path
+    output: Path
+    status: str
+    frames: int = 0
+    seconds: float = 0.0
+    problems: list[str] = field(default_factory=list)
+    error: str | None = None
+    quality: dict = field(default_factory=dict)
+
+
+def output_path(folder: Path, raw_root: Path, out_root: Path) -> Path:
+    """`<out>/<Scene>/<Task>/<trajectory_id>.hdf5` mirroring the folder's place under the raw root."""
+    rel = Path(folder).resolve().relative_to(Path(raw_root).resolve())
+    if rel == Path("."):
+        return Path(out_root) / f"{Path(folder).name}.hdf5"
+    return Path(out_root) / rel.parent / f"{rel.name}.hdf5"
+
+
+def _gzip(level: int) -> dict:
+    return {"compression": "gzip", "compression_opts": level} if level > 0 else {}
+
+
+def _write_images(file: h5py.File, episode: Episode, level: int) -> int:
+    """Stream every view into its dataset; returns the number of frames all views could decode."""
+    decoded = []
+    for view, key in IMAGE_KEYS.items():
+        source = episode.views[view]
+        shape = (episode.num_frames, source.height, source.width, 3)
+        data = file.create_dataset(key, shape=shape, maxshape=(None,) + shape[1:], dtype=np.uint8,
+                                   chunks=(1,) + shape[1:], **_gzip(level))
+        count = 0
+        while count < episode.num_frames and (image := source.read(count)) is not None:
+            data[count] = image
+            count += 1
+        decoded.append(count)
+    frames = min(decoded)
+    for key in IMAGE_KEYS.values():
+        file[key].resize(frames, axis=0)
+    return frames
+
+
+def _write_streams(file: h5py.File, episode: Episode, frames: int, level: int) -> None:
+    file.create_dataset("timestamps", data=episode.timestamps_us[:frames].astype(np.int64))
+    for h, key in enumerate(GRID_KEYS):
+        file.create_dataset(key, data=episode.pressure.grids[:frames, h], **_gzip(level))
+    for h in range(2):
+        file.create_dataset(WILOR_KEYS[h], data=episode.wilor.joints[:frames, h])
+        file.create_dataset(WILOR_VALID_KEYS[h], data=episode.wilor.valid[:frames, h].astype(np.uint8))
+        rokoko = episode.rokoko.joints[:frames, h] if episode.rokoko else np.zeros((frames, 21, 3), np.float32)
+        file.create_dataset(ROKOKO_KEYS[h], data=rokoko)
+    for r, key in enumerate(TRACKER_KEYS):
+        poses = episode.trackers.poses[:frames, r] if episode.trackers else np.zeros((frames, 7), np.float32)
+        file.create_dataset(key, data=poses)
+
+
+def _write_masks(file: h5py.File, episode: Episode, frames: int, level: int, problems: list[str]) -> None:
+    chest = episode.views["ego"]
+    masks = np.zeros((frames, 0, chest.height, chest.width), np.uint8)
+    obj_ids, valid = np.zeros((frames, 0), np.int32), np.zeros(frames, bool)
+    if (episode.path / MASKS_FILE).exists():
+        try:
+            found = read_masks(episode.path / MASKS_FILE)
+            if found.masks.shape[0] >= frames:
+                masks, obj_ids, valid = found.masks[:frames], found.obj_ids[:frames], found.valid_frames[:frames]
+            else:
+                problems.append(f"{episode.path / MASKS_FILE}: masks: {found.masks.shape[0]} frames for {frames}; stored empty")
+        except DataError as exc:
+            problems.append(str(exc))
+    file.create_dataset(MASK_KEYS[0], data=masks, **_gzip(level))
+    file.create_dataset(MASK_KEYS[1], data=obj_ids)
+    file.create_dataset(MASK_KEYS[2], data=valid)
+    file["masks"].attrs.update(num_objects=masks.shape[1], mask_available=masks.shape[1] > 0,
+                               valid_frame_count=int(valid.sum()))
+
+
+def _write_attrs(file: h5py.File, episode: Episode, frames: int, quality: dict) -> None:
+    chest = episode.views["ego"]
+    file.create_group("metadata").attrs.update(
+        trajectory_id=episode.trajectory_id, task_name=episode.task, num_frames=frames, fps=30,
+        camera_resolution=[chest.height, chest.width], data_format="new",
+        left_wrist_duplicate_ratio=quality["left"], right_wrist_duplicate_ratio=quality["right"],
+        left_wrist_has_issue=quality["left"] > DUPLICATE_ISSUE_RATIO,
+        right_wrist_has_issue=quality["right"] > DUPLICATE_ISSUE_RATIO,
+    )
+    valid = episode.wilor.valid[:frames]
+    file["hands"].attrs.update(wilor_available=True, wilor_source_file=WILOR_FILE,
+                               wilor_left_valid_frames=int(valid[:, 0].sum()),
+                               wilor_right_valid_frames=int(valid[:, 1].sum()))
+    attrs = episode.pressure.attrs
+    pressure = {"grid_size": 21, "separate_normalization": bool(attrs.get("separate_normalization", False))}
+    if pressure["separate_normalization"]:
+        pressure.update({key: float(attrs[key]) for key in MAXIMA_KEYS if key in attrs})
+    pressure.update({k: bool(v) for k, v in attrs.items() if k.startswith("baseline_corrected_")})
+    grids = episode.pressure.grids[:frames]
+    pressure["normalized"] = bool(np.nanmax(grids, initial=0.0) <= 1.0 and np.nanmin(grids, initial=0.0) >= 0.0)
+    file["pressure"].attrs.update(pressure)
+
+
+def _quality(episode: Episode, problems: list[str]) -> dict:
+    path = episode.path / QUALITY_FILE
+    if not path.exists():
+        return {"left": -1.0, "right": -1.0}
+    try:
+        return read_quality(path)
+    except DataError as exc:
+        problems.append(str(exc))
+        return {"left": -1.0, "right": -1.0}
+
+
+def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4) -> ConversionResult:
+    """Convert one raw folder; never raises for bad data (the result says what failed)."""
+    started = time.perf_counter()
+    result = ConversionResult(Path(folder), Path(out_path), "failed")
+    missing = [name for name in REQUIRED_FILES if not (Path(folder) / name).exists()]
+    if missing:
+        result.error = f"{folder}: missing required file(s): {', '.join(missing)}"
+        return result
+    partial = Path(out_path).with_name(Path(out_path).name + ".partial")
+    try:
+        with open_raw_episode(folder) as episode:
+            result.problems = list(episode.problems)
+            unreadable = [n for n, s in (("videos", len(episode.views) == 3), ("pressure_grids.npz", episode.pressure),
+                                         ("wilor_hands.json", episode.wilor)) if not s]
+            if unreadable or episode.num_frames == 0:
+                raise DataError(folder, None, f"cannot convert: unreadable {', '.join(unreadable) or 'frames (0 frames)'}")
+            result.quality = _quality(episode, result.problems)
+            partial.parent.mkdir(parents=True, exist_ok=True)
+            with h5py.File(partial, "w") as file:
+                frames = _write_images(file, episode, compression_level)
+                if frames < episode.num_frames:
+                    result.problems.append(f"{folder}: videos decode only {frames} of {episode.num_frames} frames; cut to {frames}")
+                _write_streams(file, episode, frames, compression_level)
+                _write_masks(file, episode, frames, compression_level, result.problems)
+                _write_attrs(file, episode, frames, result.quality)
+        os.replace(partial, out_path)
+        result.status, result.frames = "converted", frames
+        result.quality["wilor_valid_ratio"] = _pose_ratio(episode, frames)
+    except (DataError, OSError) as exc:
+        result.error = str(exc)
+        partial.unlink(missing_ok=True)
+    result.seconds = time.perf_counter() - started
+    return result
+
+
+def _pose_ratio(episode: Episode, frames: int) -> float:
+    """Share of frames with at least one valid WiLoR hand."""
+    return float(episode.wilor.valid[:frames].any(axis=1).mean()) if frames else 0.0

@@ -1,0 +1,146 @@
+"""HDF5 trajectories in the official EgoTouch schema: dataset names and reading.
+
+Reading is lenient per stream, like raw folders: a missing or malformed dataset becomes a problem line
+naming the file and the dataset, and the other streams are still read.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from touchanything.devices.episodes.episode import Episode, align_note, synthetic_timestamps
+from touchanything.devices.episodes.episode_files import PressureFile
+from touchanything.devices.episodes.episode_streams import HandStream, TrackerStream
+from touchanything.devices.errors import DataError, describe
+from touchanything.devices.hand_pose import hands_valid
+
+IMAGE_KEYS = {"ego": "images/chest_color", "wrist_left": "images/left_color", "wrist_right": "images/right_color"}
+TRACKER_KEYS = ("poses/chest_pose", "poses/left_pose", "poses/right_pose")
+ROKOKO_KEYS = ("hands/left_joint_xyz", "hands/right_joint_xyz")
+WILOR_KEYS = ("hands/wilor_left_joint_xyz", "hands/wilor_right_joint_xyz")
+WILOR_VALID_KEYS = ("hands/wilor_left_valid", "hands/wilor_right_valid")
+GRID_KEYS = ("pressure/left_pressure_grid", "pressure/right_pressure_grid")
+MASK_KEYS = ("masks/glove_masks", "masks/glove_obj_ids", "masks/glove_valid_frames")
+
+
+class Hdf5Frames:
+    """FrameSource over an `images/*_color` dataset (T, H, W, 3) uint8 RGB."""
+
+    def __init__(self, file: h5py.File, dataset: h5py.Dataset) -> None:
+        self._file, self._dataset = file, dataset
+        self.num_frames, self.height, self.width = dataset.shape[:3]
+
+    def read(self, index: int) -> np.ndarray | None:
+        return self._dataset[index] if 0 <= index < self.num_frames else None
+
+    def close(self) -> None:
+        if self._file.id.valid:
+            self._file.close()
+
+
+def _dataset(file: h5py.File, key: str, shape_tail: tuple, kinds: str) -> np.ndarray:
+    if key not in file:
+        raise DataError(file.filename, key, "missing dataset")
+    data = file[key]
+    if not isinstance(data, h5py.Dataset) or data.shape[1:] != shape_tail or data.dtype.kind not in kinds:
+        raise DataError(file.filename, key, f"has shape {getattr(data, 'shape', None)} and dtype "
+                        f"{getattr(data, 'dtype', None)}, expected (T, {', '.join(map(str, shape_tail))}) of kind {kinds!r}")
+    return data[()]
+
+
+def _read(problems: list[str], file: h5py.File, key: str, shape_tail: tuple, kinds: str, optional: bool = False):
+    if optional and key not in file:
+        return None
+    try:
+        return _dataset(file, key, shape_tail, kinds)
+    except DataError as exc:
+        problems.append(str(exc))
+        return None
+
+
+def _images(problems: list[str], file: h5py.File) -> dict[str, Hdf5Frames]:
+    views = {}
+    for view, key in IMAGE_KEYS.items():
+        data = file.get(key)
+        if data is None:
+            problems.append(describe(file.filename, key, "missing dataset"))
+        elif not isinstance(data, h5py.Dataset) or data.ndim != 4 or data.shape[3] != 3 or data.dtype != np.uint8:
+            problems.append(describe(file.filename, key, f"has shape {getattr(data, 'shape', None)}, expected (T, H, W, 3) uint8"))
+        else:
+            views[view] = Hdf5Frames(file, data)
+    return views
+
+
+def _pressure(problems: list[str], file: h5py.File) -> PressureFile | None:
+    grids = [_read(problems, file, key, (21, 21), "f") for key in GRID_KEYS]
+    if any(g is None for g in grids):
+        return None
+    if grids[0].shape[0] != grids[1].shape[0]:
+        problems.append(describe(file.filename, GRID_KEYS[1], "frame count differs from the left grid"))
+        return None
+    attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in file["pressure"].attrs.items()}
+    return PressureFile(np.stack(grids, axis=1).astype(np.float32), attrs)
+
+
+def _hands(problems: list[str], file: h5py.File, keys: tuple, valid_keys: tuple | None) -> HandStream | None:
+    joints = [_read(problems, file, key, (21, 3), "f", optional=valid_keys is None) for key in keys]
+    if any(j is None for j in joints) or joints[0].shape[0] != joints[1].shape[0]:
+        return None
+    joints = np.stack(joints, axis=1).astype(np.float32)
+    valid = hands_valid(joints) & np.any(joints != 0, axis=(-1, -2))
+    if valid_keys is not None:
+        flags = [_read(problems, file, key, (), "iub") for key in valid_keys]
+        if any(f is None or len(f) != len(joints) for f in flags):
+            return None
+        valid &= np.stack(flags, axis=1).astype(bool)
+    joints[~valid] = 0.0
+    return HandStream(joints, valid)
+
+
+def _trackers(problems: list[str], file: h5py.File) -> TrackerStream | None:
+    poses = [_read(problems, file, key, (7,), "f", optional=True) for key in TRACKER_KEYS]
+    if any(p is None for p in poses) or len({len(p) for p in poses}) != 1:
+        return None
+    poses = np.stack(poses, axis=1).astype(np.float32)
+    return TrackerStream(poses, np.all(np.isfinite(poses), axis=-1) & np.any(poses != 0, axis=-1))
+
+
+def open_hdf5_episode(path: Path) -> Episode:
+    """Open an official-schema HDF5 trajectory; raises DataError only when the file is not HDF5."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(path, None, "file not found")
+    try:
+        file = h5py.File(path, "r")
+    except OSError as exc:
+        raise DataError(path, None, f"not a readable HDF5 file ({exc})") from None
+    problems: list[str] = []
+    views = _images(problems, file)
+    pressure = _pressure(problems, file)
+    wilor = _hands(problems, file, WILOR_KEYS, WILOR_VALID_KEYS)
+    rokoko = _hands(problems, file, ROKOKO_KEYS, None)
+    trackers = _trackers(problems, file)
+    lengths = {IMAGE_KEYS[v]: s.num_frames for v, s in views.items()}
+    if pressure is not None:
+        lengths["pressure"] = len(pressure.grids)
+    others = {name: len(s.valid) for name, s in (("hands/wilor", wilor), ("hands/rokoko", rokoko), ("poses", trackers)) if s}
+    frames = min(lengths.values()) if lengths else min(others.values(), default=0)
+    if note := align_note({**lengths, **others}, frames):
+        problems.append(describe(path, None, note))
+    stamps = _read(problems, file, "timestamps", (), "i", optional=True)
+    stamps = stamps[:frames].astype(np.int64) if stamps is not None and len(stamps) >= frames else synthetic_timestamps(frames)
+    metadata = file["metadata"].attrs if "metadata" in file else {}
+    task = str(metadata.get("task_name", path.parent.name))
+    if pressure is not None:
+        pressure.grids = pressure.grids[:frames]
+    if not views:
+        file.close()
+    return Episode(
+        path=path, scene=path.parent.parent.name, task=task,
+        trajectory_id=str(metadata.get("trajectory_id", path.stem)), num_frames=frames, views=views,
+        timestamps_us=stamps, fps=float(metadata.get("fps", 30)),
+        wilor=wilor and wilor.fit(frames), rokoko=rokoko and rokoko.fit(frames),
+        trackers=trackers and trackers.fit(frames), pressure=pressure, problems=problems,
+    )

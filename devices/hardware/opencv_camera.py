@@ -1,0 +1,139 @@
+"""Generic cameras through OpenCV: a UVC device (index or /dev/video* path) or a video file, as a CameraSource.
+
+A video file behaves like a live camera: frame k is released at anchor + k / fps (the file's own fps,
+the configured one when the file has none), on an absolute schedule that does not drift; a reader that
+falls behind skips the overdue frames (counted as dropped) instead of building up lag. With `loop`,
+the file starts over when it ends and the sequence numbers keep increasing.
+
+Frames come out as (height, width, 3) uint8 RGB at the configured size; a source that delivers another
+size is resized (INTER_AREA). A live frame's `t_us` is the host time when OpenCV handed it over.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from touchanything.devices.errors import UserError
+from touchanything.devices.hardware.camera_source import CameraSource
+from touchanything.devices.hardware.threaded_source import SourceEnded, now_us
+
+MAX_CATCH_UP_S = 1.0
+"""A file reader further behind its schedule than this (a suspended machine) restarts the schedule
+at the current frame instead of skipping frames to catch up."""
+
+
+@dataclass(frozen=True)
+class OpenCVCameraConfig:
+    """source: camera index, device path (/dev/video*) or video file path. Size in pixels; fps: the rate
+    asked of a camera, and the pace of a file that states none. loop: start a file over at its end."""
+
+    source: int | str
+    width: int = 640
+    height: int = 480
+    fps: float = 30
+    loop: bool = False
+
+    def __post_init__(self) -> None:
+        if self.width <= 0 or self.height <= 0:
+            raise UserError(f"camera size must be positive, got {self.width}×{self.height}")
+        if not (math.isfinite(self.fps) and self.fps > 0):
+            raise UserError(f"camera fps must be a positive number, got {self.fps}")
+
+    @property
+    def is_file(self) -> bool:
+        return isinstance(self.source, str) and not self.source.startswith("/dev/")
+
+
+def fit_rgb(bgr: np.ndarray, width: int, height: int) -> np.ndarray:
+    """OpenCV's (h, w, 3) BGR frame as (height, width, 3) uint8 RGB."""
+    if bgr.shape[:2] != (height, width):
+        bgr = cv2.resize(bgr, (width, height), interpolation=cv2.INTER_AREA)
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+class OpenCVCamera(CameraSource):
+    """A UVC camera or a video file paced like one."""
+
+    def __init__(self, config: OpenCVCameraConfig) -> None:
+        super().__init__(f"OpenCV camera {config.source}")
+        self.config = config
+        self._capture: cv2.VideoCapture | None = None
+        self._period_s = 1.0 / config.fps
+        self._anchor_s = 0.0
+        self._next = 0
+        self._frames_this_pass = 0
+
+    def _open(self) -> None:
+        if self.config.is_file:
+            self._open_file(Path(self.config.source))
+        else:
+            self._open_camera()
+        self._next = self._frames_this_pass = 0
+        self._anchor_s = now_us() / 1e6
+
+    def _open_file(self, path: Path) -> None:
+        if not path.is_file():
+            raise UserError(f"video file {path} not found")
+        self._capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+        if not self._capture.isOpened():
+            raise UserError(f"video file {path} cannot be read (not a video OpenCV can decode)")
+        fps = self._capture.get(cv2.CAP_PROP_FPS)
+        self._period_s = 1.0 / (fps if math.isfinite(fps) and fps > 0 else self.config.fps)
+
+    def _open_camera(self) -> None:
+        source = self.config.source
+        self._capture = cv2.VideoCapture(source)
+        if not self._capture.isOpened():
+            raise UserError(f"no camera at {source!r} (OpenCV cannot open it); check that it is plugged in "
+                            f"and not used by another program")
+        self._capture.set(cv2.CAP_PROP_FRAME_WIDTH, self.config.width)
+        self._capture.set(cv2.CAP_PROP_FRAME_HEIGHT, self.config.height)
+        self._capture.set(cv2.CAP_PROP_FPS, self.config.fps)
+
+    def _step(self) -> None:
+        if self.config.is_file:
+            self._step_file()
+            return
+        ok, bgr = self._capture.read()
+        if not ok:
+            raise OSError(f"camera {self.config.source!r} delivered no frame")
+        self._publish_frame(fit_rgb(bgr, self.config.width, self.config.height), now_us(), self._next)
+        self._next += 1
+
+    def _step_file(self) -> None:
+        delay = self._anchor_s + self._next * self._period_s - now_us() / 1e6
+        if delay > 0:
+            self._stop.wait(delay)
+            return
+        overdue = int(-delay / self._period_s)
+        if overdue * self._period_s > MAX_CATCH_UP_S:
+            self._anchor_s -= delay
+            overdue = 0
+        for _ in range(overdue):
+            self._file_frame(decode=False)
+        bgr = self._file_frame(decode=True)
+        self._publish_frame(fit_rgb(bgr, self.config.width, self.config.height), now_us(), self._next - 1)
+
+    def _file_frame(self, decode: bool) -> np.ndarray | None:
+        """Move one frame on in the file (decoded when asked, else only grabbed) and on the schedule;
+        at the end of the file, start over when looping, else raise SourceEnded."""
+        for attempt in range(2):
+            ok, bgr = self._capture.read() if decode else (self._capture.grab(), None)
+            if ok:
+                self._frames_this_pass += 1
+                self._next += 1
+                return bgr
+            if attempt or not self.config.loop or self._frames_this_pass == 0:
+                break
+            self._capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+            self._frames_this_pass = 0
+        raise SourceEnded(f"end of {self.config.source} after {self._next} frames")
+
+    def _close(self) -> None:
+        if self._capture is not None:
+            self._capture.release()
+        self._capture = None

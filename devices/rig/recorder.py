@@ -1,0 +1,208 @@
+"""The recorder: Snapshots into a raw EgoTouch episode folder, written by a background thread.
+
+`write(snapshot)` never blocks: it puts the Snapshot into a bounded queue, and when the queue is full the
+Snapshot is dropped and counted (a slow disk costs frames, never the caller's time). One writer thread
+turns each Snapshot into an `EpisodeFrame` for `RawEpisodeWriter`:
+
+| Snapshot | episode file |
+|---|---|
+| `images[view]` | `chest.mp4` / `left.mp4` / `right.mp4` (H.264, fragmented MP4) |
+| `joints`, `joints_valid` (the model's input, head-camera frame) | `wilor_hands.json` |
+| `mocap_joints`, `mocap_valid` (when the rig has mocap) | `rokoko_hands.json` |
+| `pressure_raw`, `glove_present`, `imu_wxyz`, `t_us` | `jq_pressure.json` (an absent glove is `null`) |
+| `trackers` (when there are any) | `vive_poses.json` |
+
+`stop()` writes what is queued, closes the files and computes `pressure_grids.npz` from the glove stream.
+Crash safety is the writer's: JSONL rows are flushed per row and the videos are fragmented MP4, so a
+recording whose process dies keeps everything but its last second (the grids are then missing:
+`touchanything grids FOLDER` computes them from `jq_pressure.json`). A writer error (disk full,
+permission) stops the writing; the files are still closed, the error shows in `status()` and `stop()`
+raises it as a UserError, and everything written before it stays readable.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from touchanything.devices.episodes.episode_streams import IDENTITY_WXYZ
+from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
+from touchanything.devices.episodes.raw_episode import is_raw_episode
+from touchanything.devices.errors import UserError
+from touchanything.devices.snapshot import TRACKER_ROLES, Snapshot
+
+_STOP = object()
+LIVE_PRESET = "ultrafast"
+"""x264 preset for live recording: three 640×480 views plus the JSON streams reached 22 frames/s with
+`veryfast` on 2 cores (short of the rig's 30); `ultrafast` keeps up (files about 2.4× larger)."""
+"""Queued by `stop()` after the last Snapshot."""
+
+
+@dataclass(frozen=True)
+class RecorderConfig:
+    """folder: the episode folder to create (`<root>/<Scene>/<task>/<trajectory_id>` to be found by the
+    dataset tools). queue_frames: Snapshots waiting for the writer before new ones are dropped."""
+
+    folder: Path
+    queue_frames: int = 60
+
+    def __post_init__(self) -> None:
+        if self.queue_frames < 1:
+            raise UserError(f"recorder queue must hold at least 1 frame, got {self.queue_frames}")
+
+
+@dataclass(frozen=True)
+class RecorderCounters:
+    """written: frames in the episode; dropped: Snapshots not queued (queue full, or not recording);
+    failed: Snapshots not written because of a writer error; queued: waiting now."""
+
+    written: int = 0
+    dropped: int = 0
+    failed: int = 0
+    queued: int = 0
+
+
+def episode_frame(snapshot: Snapshot) -> EpisodeFrame:
+    """The EpisodeFrame that records `snapshot` (see the module's table)."""
+    frame = EpisodeFrame(images=snapshot.images, wilor=(snapshot.joints.reshape(2, 21, 3), snapshot.joints_valid),
+                         timestamp_us=snapshot.t_us)
+    if snapshot.mocap_joints is not None and snapshot.mocap_valid is not None:
+        frame.rokoko = (snapshot.mocap_joints.reshape(2, 21, 3), snapshot.mocap_valid)
+    if snapshot.pressure_raw is not None:
+        present = np.ones(2, bool) if snapshot.glove_present is None else snapshot.glove_present
+        quat = np.tile(np.float32(IDENTITY_WXYZ), (2, 1)) if snapshot.imu_wxyz is None else snapshot.imu_wxyz
+        frame.glove = (snapshot.pressure_raw, present, quat)
+    if snapshot.trackers:
+        poses = np.zeros((len(TRACKER_ROLES), 7), np.float32)
+        valid = np.zeros(len(TRACKER_ROLES), bool)
+        for r, role in enumerate(TRACKER_ROLES):
+            if role in snapshot.trackers:
+                poses[r], valid[r] = snapshot.trackers[role], True
+        frame.trackers = (poses, valid)
+    return frame
+
+
+def describe_error(exc: Exception) -> str:
+    """One line: the OS reason and file for an OSError, else the exception's own text."""
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.strerror} ({exc.filename})" if exc.filename else exc.strerror
+    return f"{type(exc).__name__}: {exc}"
+
+
+class Recorder:
+    """Records one episode: `start()`, `write(snapshot)` from any thread (e.g. `clock.subscribe(recorder.write)`),
+    `stop()`. Also `with Recorder(config) as recorder:`."""
+
+    def __init__(self, config: RecorderConfig) -> None:
+        self.config = config
+        self._queue: queue.Queue = queue.Queue(maxsize=config.queue_frames)
+        self._lock = threading.Lock()
+        self._accepting = False
+        self._counters = RecorderCounters()
+        self._error: str | None = None
+        self._thread: threading.Thread | None = None
+
+    @property
+    def is_recording(self) -> bool:
+        return self._thread is not None
+
+    def start(self) -> None:
+        """Create the folder and start the writer; UserError when the folder already holds an episode or
+        cannot be created."""
+        if self.is_recording:
+            raise RuntimeError("the recorder is already recording")
+        folder = Path(self.config.folder)
+        if folder.is_dir() and is_raw_episode(folder):
+            raise UserError(f"{folder} already holds a recording; choose a new folder")
+        writer = RawEpisodeWriter(folder, preset=LIVE_PRESET)
+        with self._lock:
+            self._counters, self._error = RecorderCounters(), None
+            self._queue, self._accepting = queue.Queue(maxsize=self.config.queue_frames), True
+        self._thread = threading.Thread(target=self._run, args=(writer,), name="recorder", daemon=True)
+        self._thread.start()
+
+    def write(self, snapshot: Snapshot) -> None:
+        """Queue `snapshot` for writing; never blocks (a full queue, or a stopped recorder, drops it)."""
+        with self._lock:
+            if self._accepting:
+                try:
+                    self._queue.put_nowait(snapshot)
+                    return
+                except queue.Full:
+                    pass
+            self._counters = replace(self._counters, dropped=self._counters.dropped + 1)
+
+    def stop(self) -> RecorderCounters:
+        """Write what is queued, close the files (computing the grids); UserError if writing failed."""
+        if self._thread is not None:
+            with self._lock:
+                self._accepting = False
+            self._queue.put(_STOP)
+            self._thread.join()
+            self._thread = None
+        counters = self.counters
+        if self._error is not None:
+            raise UserError(f"recording {self.config.folder} failed: {self._error}; the {counters.written} frames "
+                            "written before are kept")
+        return counters
+
+    def __enter__(self) -> Recorder:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    @property
+    def counters(self) -> RecorderCounters:
+        with self._lock:
+            return replace(self._counters, queued=self._queue.qsize())
+
+    @property
+    def error(self) -> str | None:
+        """The writer error that stopped the recording, or None."""
+        return self._error
+
+    def status(self) -> str:
+        """One line, e.g. "recording /data/ep: 300 frames, 0 dropped, queue 2/60, 12.3 MB"."""
+        c = self.counters
+        state = f"recording {self.config.folder}" if self.is_recording else f"stopped {self.config.folder}"
+        line = f"{state}: {c.written} frames, {c.dropped} dropped, queue {c.queued}/{self.config.queue_frames}"
+        line += f", {self._bytes_on_disk() / 1e6:.1f} MB"
+        return line + (f", failed: {self._error} ({c.failed} frames lost)" if self._error else "")
+
+    def _bytes_on_disk(self) -> int:
+        try:
+            return sum(p.stat().st_size for p in Path(self.config.folder).iterdir() if p.is_file())
+        except OSError:
+            return 0
+
+    def _run(self, writer: RawEpisodeWriter) -> None:
+        """Writer thread: write each queued Snapshot until `_STOP`, then close the episode."""
+        while (snapshot := self._queue.get()) is not _STOP:
+            if self._error is not None:
+                self._count(failed=1)
+                continue
+            try:
+                writer.write(episode_frame(snapshot))
+            except Exception as exc:  # noqa: BLE001 - any writer failure is kept, shown and raised by stop()
+                self._fail(exc)
+                self._count(failed=1)
+                continue
+            self._count(written=1)
+        try:
+            writer.close()
+        except Exception as exc:  # noqa: BLE001 - as above
+            self._fail(exc)
+
+    def _count(self, written: int = 0, failed: int = 0) -> None:
+        with self._lock:
+            c = self._counters
+            self._counters = replace(c, written=c.written + written, failed=c.failed + failed)
+
+    def _fail(self, exc: Exception) -> None:
+        with self._lock:
+            self._error = self._error or describe_error(exc)

@@ -1,0 +1,106 @@
+"""Export the streaming engine's two graphs to ONNX (fp32, optionally int8 by dynamic quantisation).
+
+- `encoder.onnx`: images (V, 3, S, S) float32 ImageNet-normalised, V = 1…3; view_ids (V,) int64
+  → frame_tokens (N, D). Position embeddings are baked for S (no interpolation in the graph).
+- `head.onnx`: frame_tokens (8, N, D), joints (P, J, 3), joint_ids (J,) int64 with J = 21 or 42,
+  positions (P,) int64 → pressure (P, J // 21, 21, 21).
+- `*.int8.onnx`: the same graphs with MatMul/Gemm weights quantised to int8 (ONNX Runtime dynamic
+  quantisation; activations are quantised per call at run time).
+- `engine.json`: the model config, input size, token count and the graph files per precision.
+"""
+from __future__ import annotations
+
+import copy
+import io
+import json
+import logging
+import warnings
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
+from pathlib import Path
+
+import torch
+
+from touchanything.devices.errors import UserError
+from touchanything.inference.engine.engine_runtime import MANIFEST
+from touchanything.inference.engine.frame_encoder import FrameEncoder, bake_position_embedding
+from touchanything.inference.engine.window_head import JOINTS_PER_HAND, WindowHead
+from touchanything.inference.model.model_config import config_to_dict
+from touchanything.inference.model.touch_model import TouchAnything
+from touchanything.inference.model.vit import PATCH
+
+WINDOW = 8
+OPSET = 18
+
+
+@contextmanager
+def quiet_exporter():
+    """The exporter reports progress and missing optional ops (torchvision) on stdout, stderr and its loggers."""
+    loggers = [logging.getLogger(name) for name in ("torch.onnx", "onnxscript")]
+    levels = [logger.level for logger in loggers]
+    with warnings.catch_warnings(), redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()):
+        warnings.simplefilter("ignore")
+        for logger in loggers:
+            logger.setLevel(logging.ERROR)
+        try:
+            yield
+        finally:
+            for logger, level in zip(loggers, levels):
+                logger.setLevel(level)
+
+
+def _export(module: torch.nn.Module, args: tuple, names: list[str], dynamic: dict, path: Path) -> None:
+    with quiet_exporter():
+        program = torch.onnx.export(module, args, dynamo=True, input_names=names, output_names=[path.stem],
+                                    dynamic_shapes=dynamic, opset_version=OPSET, verbose=False)
+    program.save(str(path))
+
+
+def export_encoder(model: TouchAnything, path: Path) -> None:
+    size = model.config.image_size
+    views = torch.export.Dim("views", min=1, max=3)
+    args = (torch.zeros(2, 3, size, size), torch.arange(2))
+    _export(FrameEncoder(model).eval(), args, ["images", "view_ids"],
+            {"images": {0: views}, "view_ids": {0: views}}, path)
+
+
+def export_head(model: TouchAnything, path: Path) -> None:
+    tokens = (model.config.image_size // PATCH) ** 2
+    outputs, hands = torch.export.Dim("outputs", min=1, max=WINDOW), torch.export.Dim("hands", min=1, max=2)
+    args = (torch.zeros(WINDOW, tokens, model.config.embed_dim), torch.zeros(2, 42, 3), torch.arange(42),
+            torch.tensor([WINDOW - 1, 0]))
+    dynamic = {"frame_tokens": None, "joints": {0: outputs, 1: JOINTS_PER_HAND * hands},
+               "joint_ids": {0: JOINTS_PER_HAND * hands}, "positions": {0: outputs}}
+    _export(WindowHead(model).eval(), args, ["frame_tokens", "joints", "joint_ids", "positions"], dynamic, path)
+
+
+def quantize_int8(source: Path, target: Path) -> None:
+    from onnxruntime.quantization import QuantType, quantize_dynamic
+
+    logging.disable(logging.WARNING)  # it logs advice on the root logger for every graph
+    try:
+        quantize_dynamic(str(source), str(target), weight_type=QuantType.QInt8, op_types_to_quantize=["MatMul", "Gemm"])
+    finally:
+        logging.disable(logging.NOTSET)
+
+
+def export_onnx(model: TouchAnything, out_dir: Path, *, int8: bool = False, source: str = "") -> dict:
+    """Write the graphs and `engine.json` into `out_dir`; return the manifest."""
+    out_dir = Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{out_dir}: cannot create the output folder ({exc.strerror})") from None
+    model = copy.deepcopy(model).float().cpu().eval()
+    bake_position_embedding(model)
+    files = {"fp32": {"encoder": "encoder.onnx", "head": "head.onnx"}}
+    export_encoder(model, out_dir / "encoder.onnx")
+    export_head(model, out_dir / "head.onnx")
+    if int8:
+        files["int8"] = {part: f"{part}.int8.onnx" for part in ("encoder", "head")}
+        for part in ("encoder", "head"):
+            quantize_int8(out_dir / files["fp32"][part], out_dir / files["int8"][part])
+    manifest = {"config": config_to_dict(model.config), "image_size": model.config.image_size,
+                "tokens": (model.config.image_size // PATCH) ** 2, "width": model.config.embed_dim,
+                "window": WINDOW, "opset": OPSET, "source": source, "files": files}
+    (out_dir / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+    return manifest

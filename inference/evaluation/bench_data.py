@@ -1,0 +1,81 @@
+"""Benchmark inputs: held-out episodes decoded once (frames resized to the model input), a full-resolution
+clip for latency, and the process's resident memory."""
+from __future__ import annotations
+
+import os
+import resource
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_raw_episodes, is_hdf5_path, open_episode
+from touchanything.devices.errors import UserError
+from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
+from touchanything.devices.snapshot import Snapshot
+from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
+from touchanything.inference.model.preprocess import resize_frame
+
+
+@dataclass
+class BenchEpisode:
+    """One episode in memory. images {view: (F, S, S, 3) uint8}; joints (F, 42, 3); valid (F, 2);
+    gt (F, 2, 21, 21) metric-ready ground truth (NaN outside the layout)."""
+
+    name: str
+    images: dict[str, np.ndarray]
+    joints: np.ndarray
+    valid: np.ndarray
+    gt: np.ndarray
+
+    @property
+    def num_frames(self) -> int:
+        return len(self.joints)
+
+    def snapshot(self, index: int, t_us: int) -> Snapshot:
+        return Snapshot(index, t_us, {v: frames[index] for v, frames in self.images.items()}, self.joints[index],
+                        self.valid[index])
+
+
+def episode_paths(data: Path) -> list[Path]:
+    """Raw episode folders and HDF5 files under `data` (or `data` itself)."""
+    if not Path(data).exists():
+        raise UserError(f"{data}: not found")
+    if is_hdf5_path(data):
+        return [Path(data)]
+    paths = find_raw_episodes(data) + find_hdf5_files(data)
+    if not paths:
+        raise UserError(f"{data}: no episodes (raw EgoTouch folders or .hdf5 files) found")
+    return paths
+
+
+def load_episode(path: Path, size: int, max_frames: int | None) -> BenchEpisode:
+    with open_episode(path) as episode:
+        if episode.pressure is None or episode.wilor is None:
+            raise UserError(f"{path}: needs ground-truth pressure and WiLoR poses for the accuracy benchmark")
+        frames = episode.num_frames if max_frames is None else min(max_frames, episode.num_frames)
+        source = ReplaySource(episode, ReplayConfig(speed=None))
+        images: dict[str, list] = {}
+        for index in range(frames):
+            for view, image in source.snapshot(index).images.items():
+                images.setdefault(view, []).append(resize_frame(image, size))
+        gt = ground_truth_for_metrics(episode.pressure.grids, bool(episode.pressure.attrs.get("normalized", False)))
+        return BenchEpisode(f"{episode.scene}/{episode.task}/{episode.trajectory_id}",
+                            {v: np.stack(f) for v, f in images.items()},
+                            episode.wilor.joints[:frames].reshape(frames, 42, 3), episode.wilor.valid[:frames], gt[:frames])
+
+
+def latency_clip(path: Path, frames: int) -> list[Snapshot]:
+    """The first `frames` snapshots of an episode at full camera resolution (preprocessing is timed too)."""
+    with open_episode(path) as episode:
+        source = ReplaySource(episode, ReplayConfig(speed=None))
+        return [source.snapshot(i) for i in range(min(frames, episode.num_frames))]
+
+
+def resident_mb() -> float:
+    """Current resident memory of this process in MB (peak so far where /proc is unavailable)."""
+    try:
+        pages = int(Path("/proc/self/statm").read_text().split()[1])
+        return pages * os.sysconf("SC_PAGE_SIZE") / 1e6
+    except (OSError, ValueError, IndexError):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3

@@ -1,0 +1,189 @@
+"""The model's configuration in the official structure (`config.yaml` of the official release), and presets.
+
+The `model` section is read strictly: the official sections `vision_encoder`, `temporal_transformer`,
+`multi_view`, `pose_encoder`, `fusion`, `tactile_decoder` (field names as in the official YAML), plus
+`num_input_joints`, `task`, `name` and the unused `pose_decoder`; anything else is an error naming the key and
+the file. From `data`, the input size `image_size: [S, S]` and the settings the model's input depends on
+(ImageNet normalisation, 8-frame clips at interval 2, the 21×21 grid) are read; other `data` keys belong to
+training and are not looked at here. Absent keys take the official values.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import ClassVar
+
+import yaml
+
+from touchanything.devices.errors import UserError, describe
+from touchanything.inference.model.config_sections import SectionReader, check_section, limits, section_to_dict
+from touchanything.inference.model.vit import BACKBONES, PATCH
+
+CLIP_LENGTH, FRAME_INTERVAL, TACTILE_SIZE, NUM_JOINTS = 8, 2, 21, 42
+SPAN = (CLIP_LENGTH - 1) * FRAME_INTERVAL + 1  # frames one clip covers
+IMAGENET_MEAN, IMAGENET_STD = [0.485, 0.456, 0.406], [0.229, 0.224, 0.225]
+LAYERS, HEADS, RATIO, DROPOUT = limits(1), limits(1), limits(0.0, None), limits(0.0, 1.0, high_open=True)
+
+
+@dataclass(frozen=True)
+class VisionEncoderConfig:
+    FIXED: ClassVar = {"type": "dinov2", "patch_size": PATCH}
+    DERIVED: ClassVar = {"embed_dim": lambda s: BACKBONES[s.model_name].width if s.model_name in BACKBONES else None}
+    model_name: str = "dinov2_vitb14"
+    pretrained_path: str | None = None
+    freeze: bool = True
+
+
+@dataclass(frozen=True)
+class TemporalTransformerConfig:
+    UNUSED: ClassVar = ("hidden_dim",)  # never read by the official code either
+    num_layers: int = field(default=3, metadata=LAYERS)
+    num_heads: int = field(default=8, metadata=HEADS)
+    mlp_ratio: float = field(default=4.0, metadata=RATIO)
+    dropout: float = field(default=0.1, metadata=DROPOUT)
+    window_size: int = field(default=16, metadata=limits(CLIP_LENGTH))
+
+
+@dataclass(frozen=True)
+class MultiViewConfig:
+    FIXED: ClassVar = {"enabled": True}
+    num_cross_layers: int = field(default=2, metadata=LAYERS)
+    num_heads: int = field(default=8, metadata=HEADS)
+    mlp_ratio: float = field(default=4.0, metadata=RATIO)
+    dropout: float = field(default=0.1, metadata=DROPOUT)
+    view_dropout_prob: float = field(default=0.3, metadata=limits(0.0, 1.0))
+
+
+@dataclass(frozen=True)
+class PoseEncoderConfig:
+    FIXED: ClassVar = {"type": "transformer", "num_joints": NUM_JOINTS, "output_mode": "per_joint"}
+    num_layers: int = field(default=2, metadata=LAYERS)
+    num_heads: int = field(default=8, metadata=HEADS)
+    mlp_ratio: float = field(default=4.0, metadata=RATIO)
+    dropout: float = field(default=0.1, metadata=DROPOUT)
+
+
+@dataclass(frozen=True)
+class FusionConfig:
+    FIXED: ClassVar = {"type": "cross_attention"}
+    num_heads: int = field(default=8, metadata=HEADS)
+    num_layers: int = field(default=2, metadata=LAYERS)
+    mlp_ratio: float = field(default=4.0, metadata=RATIO)
+    dropout: float = field(default=0.1, metadata=DROPOUT)
+
+
+@dataclass(frozen=True)
+class TactileDecoderConfig:
+    FIXED: ClassVar = {"type": "joint_level", "num_joints": NUM_JOINTS, "tactile_size": TACTILE_SIZE}
+    conv_channels: int = field(default=128, metadata=limits(1))
+    dropout: float = field(default=0.1, metadata=DROPOUT)
+
+
+@dataclass(frozen=True)
+class ModelInputConfig:
+    """The part of the `data` section the model's input depends on."""
+
+    FIXED: ClassVar = {"normalize_mean": IMAGENET_MEAN, "normalize_std": IMAGENET_STD, "clip_length": CLIP_LENGTH,
+                       "frame_interval": FRAME_INTERVAL, "tactile_size": TACTILE_SIZE}
+    image_size: tuple[int, int] = field(default=(224, 224), metadata=limits(PATCH))
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """The `model` section (official names) plus the square input size from `data.image_size`."""
+
+    FIXED: ClassVar = {"task": "tactile_prediction", "num_input_joints": NUM_JOINTS}
+    UNUSED: ClassVar = ("name", "pose_decoder")
+    vision_encoder: VisionEncoderConfig = VisionEncoderConfig()
+    temporal_transformer: TemporalTransformerConfig = TemporalTransformerConfig()
+    multi_view: MultiViewConfig = MultiViewConfig()
+    pose_encoder: PoseEncoderConfig = PoseEncoderConfig()
+    fusion: FusionConfig = FusionConfig()
+    tactile_decoder: TactileDecoderConfig = TactileDecoderConfig()
+    image_size: int = field(default=224, metadata={"not_in_section": True})
+
+    @property
+    def backbone(self) -> str:
+        return self.vision_encoder.model_name
+
+    @property
+    def embed_dim(self) -> int:
+        return BACKBONES[self.backbone].width
+
+    @property
+    def patches(self) -> int:
+        return (self.image_size // PATCH) ** 2
+
+    def check(self, source: str = "config") -> ModelConfig:
+        """One line naming the key for an impossible configuration."""
+        def fail(key: str, problem: str) -> UserError:
+            return UserError(describe(source, key, problem))
+
+        if self.backbone not in BACKBONES:
+            raise fail("model.vision_encoder.model_name", f"unknown backbone {self.backbone!r}; choose from {', '.join(BACKBONES)}")
+        check_section(self, "model", source)
+        if self.image_size < PATCH or self.image_size % PATCH:
+            raise fail("data.image_size", f"{self.image_size} is not a positive multiple of the patch size {PATCH}")
+        for section in ("temporal_transformer", "multi_view", "pose_encoder", "fusion"):
+            heads = getattr(self, section).num_heads
+            if self.embed_dim % heads:
+                raise fail(f"model.{section}.num_heads", f"{heads} does not divide the width {self.embed_dim} of {self.backbone}")
+        return self
+
+
+def with_backbone(config: ModelConfig, **changes) -> ModelConfig:
+    """`config` with `vision_encoder` fields replaced (model_name, pretrained_path, freeze)."""
+    return replace(config, vision_encoder=replace(config.vision_encoder, **changes))
+
+
+def _light(backbone: str, size: int, temporal: int, heads: int, channels: int) -> ModelConfig:
+    """A narrower, shallower preset: one layer of cross-view, pose and fusion attention."""
+    return ModelConfig(
+        vision_encoder=VisionEncoderConfig(model_name=backbone),
+        temporal_transformer=TemporalTransformerConfig(num_layers=temporal, num_heads=heads),
+        multi_view=MultiViewConfig(num_cross_layers=1, num_heads=heads),
+        pose_encoder=PoseEncoderConfig(num_layers=1, num_heads=heads),
+        fusion=FusionConfig(num_layers=1, num_heads=heads),
+        tactile_decoder=TactileDecoderConfig(conv_channels=channels), image_size=size)
+
+
+PRESETS = {
+    "paper": ModelConfig(),
+    "small": _light("dinov2_vits14", 168, temporal=2, heads=8, channels=64),
+    "tiny": _light("vit_t14", 112, temporal=2, heads=4, channels=64),
+    "nano": _light("vit_n14", 112, temporal=1, heads=4, channels=32),
+}
+"""`paper` is exactly the official architecture; `small` (ViT-S/14 at 168 px, for users with the DINOv2
+S/14 weights), `tiny` (width 192, 6 blocks at 112 px) and `nano` (width 128, 4 blocks at 112 px) are
+narrower and shallower for CPU real time; tiny and nano train from scratch on a CPU."""
+
+
+def preset(name: str) -> ModelConfig:
+    if name not in PRESETS:
+        raise UserError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
+    return PRESETS[name]
+
+
+def read_model_config(data: dict, reader: SectionReader) -> ModelConfig:
+    """The model described by an official-structure config dict (strict `model`, lenient `data`)."""
+    model = reader.read(ModelConfig, data.get("model"), "model")
+    inputs = reader.read(ModelInputConfig, data.get("data"), "data", strict=False)
+    height, width = inputs.image_size
+    if height != width:
+        raise reader.error("data.image_size", f"must be square, got {list(inputs.image_size)}")
+    return replace(model, image_size=height).check(reader.source)
+
+
+def config_from_dict(data: dict, source: str = "config") -> ModelConfig:
+    """`read_model_config` with a fresh reader naming `source` in its errors."""
+    return read_model_config(data, SectionReader(source))
+
+
+def config_to_dict(config: ModelConfig) -> dict:
+    """The official structure: the `model` section and the `data` keys the model's input depends on."""
+    inputs = section_to_dict(ModelInputConfig(image_size=(config.image_size, config.image_size)))
+    return {"model": section_to_dict(config), "data": inputs}
+
+
+def write_config(path: Path, config: ModelConfig) -> None:
+    Path(path).write_text(yaml.safe_dump(config_to_dict(config), sort_keys=False))

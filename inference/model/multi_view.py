@@ -1,0 +1,67 @@
+"""MultiViewEncoder: per-view backbone tokens plus a view embedding, fused per frame by a softmax gate."""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.inference.model.vision_encoder import VisionEncoder
+
+
+def encoder_layers(width: int, heads: int, layers: int, mlp_ratio: float, dropout: float) -> nn.TransformerEncoder:
+    """The official pre-norm GELU `nn.TransformerEncoder` stack (no final norm)."""
+    layer = nn.TransformerEncoderLayer(width, heads, int(width * mlp_ratio), dropout, activation="gelu",
+                                       batch_first=True, norm_first=True)
+    return nn.TransformerEncoder(layer, layers, enable_nested_tensor=False)
+
+
+class MultiViewEncoder(nn.Module):
+    """views {name: (B, T, 3, H, W)} (any subset of ego, wrist_left, wrist_right) → (B, T, N, D).
+
+    Absent views are simply not in the dict. One view: output_norm(tokens + view embedding). Several: the
+    cross-view transformer over per-view mean tokens gives softmax gates over the present views; the
+    output is output_norm of the gate-weighted sum of per-view tokens. Training drops each wrist view with
+    probability `view_dropout` (one draw per call, ego always kept).
+    """
+
+    def __init__(self, vision_encoder: VisionEncoder, width: int, heads: int, layers: int, mlp_ratio: float,
+                 dropout: float, view_dropout: float) -> None:
+        super().__init__()
+        self.vision_encoder = vision_encoder
+        self.view_embeddings = nn.ParameterDict({v: nn.Parameter(torch.randn(1, 1, 1, width) * 0.02) for v in VIEW_NAMES})
+        self.cross_view_transformer = encoder_layers(width, heads, layers, mlp_ratio, dropout)
+        self.view_gate = nn.Sequential(nn.Linear(width, width // 4), nn.GELU(), nn.Linear(width // 4, 1))
+        self.output_norm = nn.LayerNorm(width)
+        self.view_dropout = view_dropout
+        self.last_kept: tuple[str, ...] = ()
+
+    def kept_views(self, views: dict[str, torch.Tensor]) -> list[str]:
+        """Present views in the official order, after view dropout when training (kept in `last_kept`)."""
+        order = [v for v in VIEW_NAMES if v in views]
+        if self.training:
+            order = [v for v in order if v == "ego" or torch.rand(1).item() > self.view_dropout] or order[:1]
+        self.last_kept = tuple(order)
+        return order
+
+    def encode_view(self, name: str, frames: torch.Tensor) -> torch.Tensor:
+        """(B, T, 3, H, W) → (B, T, N, D) backbone tokens plus the view embedding."""
+        return self.vision_encoder(frames) + self.view_embeddings[name]
+
+    def fuse(self, encoded: dict[str, torch.Tensor]) -> torch.Tensor:
+        """{view: (B, T, N, D)} already encoded → (B, T, N, D) fused and normalised."""
+        order = [v for v in VIEW_NAMES if v in encoded]
+        if len(order) == 1:
+            return self.output_norm(encoded[order[0]])
+        b, t, n, d = encoded[order[0]].shape
+        flat = [encoded[v].reshape(b * t, n, d) for v in order]
+        summary = torch.stack([f.mean(dim=1) for f in flat], dim=1)
+        weights = torch.softmax(self.view_gate(self.cross_view_transformer(summary)).squeeze(-1), dim=-1)
+        fused = sum(weights[:, i, None, None] * f for i, f in enumerate(flat))
+        return self.output_norm(fused).reshape(b, t, n, d)
+
+    def forward(self, views: dict[str, torch.Tensor]) -> torch.Tensor:
+        return self.fuse({v: self.encode_view(v, views[v]) for v in self.kept_views(views)})
+
+    def forward_tokens(self, tokens: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The same as `forward` from backbone tokens {view: (B, T, N, D)} computed beforehand."""
+        return self.fuse({v: tokens[v] + self.view_embeddings[v] for v in self.kept_views(tokens)})

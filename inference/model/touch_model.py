@@ -1,0 +1,58 @@
+"""TouchAnything: the official module tree and state_dict names, and its forward pass.
+
+`model(frames=None, poses=None, views=None) -> {"tactile": (B, T, 2, 21, 21)}`. `views` is a dict with any
+subset of ego, wrist_left, wrist_right, each (B, T, 3, H, W); `poses` (B, T, 42, 3) prepared with
+`prepare_poses`. The official `frames=` path (ego only, no view embedding, no output norm) is kept.
+The backbone is shared, so it appears in the state_dict under both `vision_encoder.encoder.*` and
+`multi_view_encoder.vision_encoder.encoder.*`.
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from touchanything.inference.model.fusion import CrossAttentionFusion
+from touchanything.inference.model.model_config import NUM_JOINTS, TACTILE_SIZE, ModelConfig
+from touchanything.inference.model.multi_view import MultiViewEncoder
+from touchanything.inference.model.pose_encoder import TransformerPoseEncoder
+from touchanything.inference.model.tactile_decoder import JointLevelTactileDecoder
+from touchanything.inference.model.temporal import TemporalTransformer
+from touchanything.inference.model.vision_encoder import VisionEncoder
+from touchanything.inference.model.vit import BACKBONES, DinoVisionTransformer
+
+
+class TouchAnything(nn.Module):
+    def __init__(self, config: ModelConfig) -> None:
+        super().__init__()
+        c = config.check()
+        self.config = c
+        width, mv, tt, pe, fu = c.embed_dim, c.multi_view, c.temporal_transformer, c.pose_encoder, c.fusion
+        self.vision_encoder = VisionEncoder(DinoVisionTransformer(BACKBONES[c.backbone]), c.vision_encoder.freeze)
+        self.multi_view_encoder = MultiViewEncoder(self.vision_encoder, width, mv.num_heads, mv.num_cross_layers,
+                                                   mv.mlp_ratio, mv.dropout, mv.view_dropout_prob)
+        self.temporal_transformer = TemporalTransformer(width, tt.num_layers, tt.num_heads, tt.mlp_ratio, tt.dropout,
+                                                        tt.window_size)
+        self.pose_encoder = TransformerPoseEncoder(width, pe.num_layers, pe.num_heads, pe.mlp_ratio, pe.dropout, NUM_JOINTS)
+        self.fusion = CrossAttentionFusion(width, fu.num_layers, fu.num_heads, fu.mlp_ratio, fu.dropout)
+        self.decoder = JointLevelTactileDecoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE)
+
+    def forward(self, frames: torch.Tensor | None = None, poses: torch.Tensor | None = None,
+                views: dict[str, torch.Tensor] | None = None,
+                tokens: dict[str, torch.Tensor] | None = None) -> dict[str, torch.Tensor]:
+        """`tokens` (not in the official signature): backbone tokens {view: (B, T, N, D)} computed
+        beforehand (a frozen backbone's cache), used instead of `views`."""
+        if poses is None:
+            raise ValueError("poses (B, T, 42, 3) are required for tactile prediction")
+        if views is not None:
+            visual = self.multi_view_encoder(views)
+        elif tokens is not None:
+            visual = self.multi_view_encoder.forward_tokens(tokens)
+        elif frames is not None:
+            visual = self.vision_encoder(frames)
+        else:
+            raise ValueError("give views={...}, tokens={...} or frames=")
+        return {"tactile": self.head(visual, poses)}
+
+    def head(self, visual: torch.Tensor, poses: torch.Tensor) -> torch.Tensor:
+        """Fused visual tokens (B, T, N, D) and prepared poses (B, T, 42, 3) → (B, T, 2, 21, 21)."""
+        return self.decoder(self.fusion(self.temporal_transformer(visual), self.pose_encoder(poses)))

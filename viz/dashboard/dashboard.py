@@ -1,0 +1,257 @@
+"""The dearpygui dashboard: cameras with hand overlays, measured / predicted / error pressure maps,
+contact lamps, running metrics, latency per stage, device status, and the session's controls.
+
+The render loop runs on the calling thread and never waits for devices or the engine: each frame it
+reads the session's latest state and rebuilds an image only when its content changed (cameras on a new
+snapshot, maps on a new prediction); plots are refreshed at most 5 and tables 10 times a second.
+Callbacks run on the same thread (manual callback management), between frames.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import dearpygui.dearpygui as dpg
+import matplotlib
+import numpy as np
+
+from touchanything.devices.errors import UserError
+from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.viz.contact import hand_contact
+from touchanything.viz.dashboard.dashboard_controls import build_controls, build_tables, update_tables
+from touchanything.viz.dashboard.dashboard_drawn import ContactLamps, HistoryPlots
+from touchanything.viz.dashboard.dashboard_panels import blank, camera_panel, pressure_views
+from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState
+from touchanything.viz.display import display_problem
+from touchanything.viz.pressure_panel import MAP_GAP, maps_width
+from touchanything.viz.textures import TextureSlot
+
+CAMERA = (256, 192)
+CAMERA_TEXTURE = (192, 144)
+"""Camera textures are smaller than drawn (CAMERA): dearpygui re-uploads every raw texture every frame."""
+CELL = 7
+MAPS = (maps_width(CELL), 21 * CELL)
+CONTACT = (460, 84)
+PLOTS = (MAPS[0], MAPS[1] + 40)
+MAP_NAMES = ("measured", "predicted", "error")
+MAP_COLUMN_GAP = 60
+WINDOW_COLOUR = (37, 37, 38)
+"""The viewport is cleared to this colour and the full-screen window draws no background of its own:
+under software OpenGL a blended full-screen quad costs about half of an otherwise empty frame."""
+REFRESH_PERIODS_S = {"plots": 0.2, "tables": 0.1}
+"""The plots and the text tables are refreshed at most this often (every frame would only cost CPU)."""
+FONT_SIZE = 13
+HAND_LABEL_SPACING = 21 * CELL + MAP_GAP - round(len("left hand") * 0.517 * FONT_SIZE)
+"""Puts "right hand" under the right map. The font is monospaced; dearpygui scales it so that ascent −
+descent is FONT_SIZE pixels, and DejaVu Sans Mono advances 0.517 of that per character."""
+
+
+@dataclass(frozen=True)
+class DashboardConfig:
+    width: int = 1280
+    height: int = 720
+    title: str = "TouchAnything Live"
+    screenshot_dir: Path = Path("recordings") / "screenshots"
+
+
+@dataclass
+class DashboardStats:
+    """frames rendered over `seconds`; camera_lag_ms / prediction_lag_ms: now − capture time when a new
+    camera frame / prediction reached the screen."""
+
+    frames: int = 0
+    seconds: float = 0.0
+    camera_lag_ms: list[float] = field(default_factory=list)
+    prediction_lag_ms: list[float] = field(default_factory=list)
+
+    @property
+    def fps(self) -> float:
+        return self.frames / self.seconds if self.seconds > 0 else 0.0
+
+
+class Dashboard:
+    """`run()` opens the window and returns when it is closed (or after `max_frames`)."""
+
+    def __init__(self, session: DashboardSession, config: DashboardConfig = DashboardConfig()) -> None:
+        self.session = session
+        self.config = config
+        self.stats = DashboardStats()
+        self.bend = TactileLayout.default().bend
+        self.outline = False
+        self.pending_screenshot: Path | None = None
+        self.saved_screenshots: list[Path] = []
+        self.note = ""
+        self._closing = False
+        self.panel_rects: dict[str, tuple[int, int, int, int]] = {}
+        """Where each image panel is on screen: name → (x, y, width, height) in viewport pixels."""
+        self._shown: dict[str, object] = {}
+        self._due = dict.fromkeys(REFRESH_PERIODS_S, 0.0)
+
+    def run(self, max_frames: int | None = None, screenshot: Path | None = None) -> DashboardStats:
+        """Render until the window closes or `max_frames` frames; with `screenshot`, the content stops
+        changing after `max_frames` and that last frame (what `shown` holds) is saved there as PNG.
+        Raises UserError when no X display is reachable (checked before dearpygui starts: it would abort
+        the process). The session is closed before the GUI is torn down (its threads must not run while
+        dearpygui destroys its context). One dashboard per process: dearpygui 2.x does not survive a
+        second context next to running decoder threads."""
+        problem = display_problem()
+        if problem:
+            self.session.close()
+            raise UserError(f"cannot open the dashboard: {problem}")
+        dpg.create_context()
+        try:
+            dpg.configure_app(manual_callback_management=True)
+            self._build()
+            dpg.create_viewport(title=self.config.title, width=self.config.width, height=self.config.height,
+                                x_pos=0, y_pos=0)
+            dpg.setup_dearpygui()
+            dpg.show_viewport()
+            dpg.set_primary_window("main", True)
+            dpg.configure_item("main", no_background=True)
+            dpg.set_viewport_clear_color((*WINDOW_COLOUR, 255))
+            self._loop(max_frames, screenshot)
+        finally:
+            self.session.close()
+            dpg.destroy_context()
+        return self.stats
+
+    def _bind_font(self) -> None:
+        """DejaVu Sans Mono (shipped with matplotlib): dearpygui's built-in font has ASCII glyphs only, and
+        the messages of the devices and the engine use arrows, dashes and signs such as ≤ − × →."""
+        path = Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSansMono.ttf"
+        with dpg.font_registry():
+            dpg.bind_font(dpg.add_font(str(path), FONT_SIZE))
+
+    def _build(self) -> None:
+        self._bind_font()
+        with dpg.texture_registry() as registry:
+            self.cameras = {view: TextureSlot(registry, *CAMERA_TEXTURE) for view in VIEW_NAMES}
+            self.maps = {name: TextureSlot(registry, *MAPS) for name in MAP_NAMES}
+        with dpg.window(tag="main"):
+            with dpg.group(horizontal=True):
+                with dpg.group():
+                    with dpg.group(horizontal=True):
+                        for view in VIEW_NAMES:
+                            dpg.add_image(self.cameras[view].tag, tag=f"image_{view}", width=CAMERA[0],
+                                          height=CAMERA[1])
+                    for row in (("measured", "predicted"), ("error", None)):
+                        with dpg.group(horizontal=True, horizontal_spacing=MAP_COLUMN_GAP):
+                            for name in row:
+                                with dpg.group():
+                                    if name is None:
+                                        self.plots = HistoryPlots(*PLOTS)
+                                        continue
+                                    dpg.add_text("", tag=f"title_{name}")
+                                    dpg.add_image(self.maps[name].tag, tag=f"image_{name}", width=MAPS[0], height=MAPS[1])
+                                    with dpg.group(horizontal=True, horizontal_spacing=HAND_LABEL_SPACING):
+                                        dpg.add_text("left hand")
+                                        dpg.add_text("right hand")
+                with dpg.group():
+                    build_controls(self)
+                    self.lamps = ContactLamps(*CONTACT)
+                    build_tables()
+
+    def _loop(self, max_frames: int | None, screenshot: Path | None) -> None:
+        start = time.perf_counter()
+        while dpg.is_dearpygui_running() and not self._closing:
+            dpg.run_callbacks(dpg.get_callback_queue())
+            finishing = max_frames is not None and self.stats.frames >= max_frames
+            if not finishing:
+                self._update(self.session.state())
+            dpg.render_dearpygui_frame()
+            if not self.panel_rects:
+                self._find_panels()
+            self.stats.frames += 1
+            self.stats.seconds = time.perf_counter() - start
+            if max_frames is not None and self.stats.frames >= max_frames:
+                if screenshot is None or screenshot in self.saved_screenshots:
+                    break
+                if self.pending_screenshot is None:
+                    self.request_screenshot(screenshot)
+
+    def close(self) -> None:
+        """Ask the render loop to end after the current frame (callable from any thread)."""
+        self._closing = True
+
+    @property
+    def shown(self) -> dict[str, object]:
+        """What is on screen now: the snapshot and prediction records last uploaded."""
+        return dict(self._shown)
+
+    def _find_panels(self) -> None:
+        """Record the panels' screen rectangles once dearpygui has laid them out."""
+        rects = {}
+        for name in (*VIEW_NAMES, *MAP_NAMES):
+            (x, y), (w, h) = dpg.get_item_rect_min(f"image_{name}"), dpg.get_item_rect_size(f"image_{name}")
+            rects[name] = (int(x), int(y), int(w), int(h))
+        if all(w > 0 and h > 0 for _, _, w, h in rects.values()):
+            self.panel_rects = rects
+
+    def _changed(self, key: str, value: object) -> bool:
+        """Whether `value` differs from what is on screen under `key` (identity for records, equality for
+        settings tuples), remembering it."""
+        shown = self._shown.get(key, ...)
+        if shown is value or (isinstance(value, tuple) and shown == value):
+            return False
+        self._shown[key] = value
+        return True
+
+    def _update(self, state: SessionState) -> None:
+        now_us = time.monotonic_ns() / 1000
+        views = self.session.views
+        prediction = state.prediction
+        pressure = None if prediction is None else prediction.pressure
+        if self._changed("snapshot", state.snapshot) | self._changed("views", views):
+            for view in VIEW_NAMES:
+                self.cameras[view].show(camera_panel(state.snapshot, view, view in views, *CAMERA_TEXTURE, pressure))
+            if state.snapshot is not None:
+                self.stats.camera_lag_ms.append((now_us - state.snapshot.t_us) / 1e3)
+        settings = (self.session.threshold, self.outline, state.truth is None)
+        new_prediction = self._changed("prediction", prediction)
+        if new_prediction | self._changed("settings", settings):
+            for name, (image, title) in pressure_views(state, CELL, self.session.threshold, self.outline).items():
+                self.maps[name].show(blank(*MAPS, "n/a") if image is None else image)
+                dpg.set_value(f"title_{name}", title)
+            threshold = self.session.threshold
+            self.lamps.update(hand_contact(pressure, self.bend, threshold), hand_contact(state.truth, self.bend, threshold))
+        if new_prediction and prediction is not None:
+            self.stats.prediction_lag_ms.append((now_us - prediction.t_us) / 1e3)
+        if self._refresh_due("plots"):
+            self.plots.update(state.history)
+        if self._refresh_due("tables"):
+            update_tables(self, state)
+
+    def _refresh_due(self, name: str) -> bool:
+        """Whether `name` is due for a refresh (then the next one is scheduled)."""
+        now = time.perf_counter()
+        if now < self._due[name]:
+            return False
+        self._due[name] = now + REFRESH_PERIODS_S[name]
+        return True
+
+    def request_screenshot(self, path: Path | None = None) -> None:
+        """Save the next rendered frame as PNG (default: a timestamped file under the screenshot folder)."""
+        if path is None:
+            path = self.config.screenshot_dir / time.strftime("dashboard_%Y%m%d_%H%M%S.png")
+        self.pending_screenshot = Path(path)
+        dpg.output_frame_buffer(callback=self._save_screenshot)
+
+    def _save_screenshot(self, sender: object, buffer: object) -> None:
+        path, self.pending_screenshot = self.pending_screenshot, None
+        width, height = dpg.get_viewport_client_width(), dpg.get_viewport_client_height()
+        rgba = np.frombuffer(buffer, np.float32)
+        pixels = rgba.size // 4
+        height = pixels // width if width and pixels % width == 0 else height
+        image = (np.clip(rgba.reshape(height, -1, 4)[..., :3], 0, 1) * 255).round().astype(np.uint8)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if not cv2.imwrite(str(path), image[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 9]):
+                raise OSError("the image could not be encoded")
+        except OSError as exc:
+            self.note = f"screenshot not saved: {path}: {exc}"
+            return
+        self.saved_screenshots.append(path)
+        self.note = f"screenshot saved: {path}"

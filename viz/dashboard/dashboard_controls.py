@@ -1,0 +1,160 @@
+"""The dashboard's right-hand column: controls wired to the session, and the metric, timing and device
+tables refreshed from each SessionState."""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import dearpygui.dearpygui as dpg
+import numpy as np
+
+from touchanything.devices.errors import UserError
+from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.viz.comparison_video import VIEW_LABELS
+from touchanything.viz.dashboard.dashboard_state import SessionState
+
+if TYPE_CHECKING:
+    from touchanything.viz.dashboard.dashboard import Dashboard
+
+SPEEDS = ("0.25", "0.5", "1", "2", "4")
+METRIC_ROWS = (("temporal_accuracy", "temporal accuracy"), ("contact_iou", "contact IoU"),
+               ("volumetric_iou", "volumetric IoU"), ("mae", "MAE"))
+STAGES = ("preprocess", "encode", "head", "total")
+DEVICE_ROWS = 10
+DEVICE_COLUMNS = (("source", 1.1), ("state", 2.2), ("rate", 0.7), ("age", 0.7), ("drops", 0.6))
+"""Device table columns and their relative widths."""
+
+
+def build_controls(dash: Dashboard) -> None:
+    session = dash.session
+    dpg.add_text("", tag="model_text")
+    dpg.add_text("", tag="message_text", wrap=460)
+    with dpg.group(tag="transport"):
+        with dpg.group(horizontal=True):
+            dpg.add_button(label="Pause", tag="play_button", width=70, callback=lambda: _play_pause(dash))
+            dpg.add_button(label="Step", width=60, callback=lambda: session.step())
+            dpg.add_text("speed")
+            dpg.add_combo(SPEEDS, default_value="1", width=70, tag="speed",
+                          callback=lambda s, value: session.set_speed(float(value)))
+        dpg.add_slider_int(tag="seek", label="frame", min_value=0, max_value=1, width=400,
+                           callback=lambda s, value: session.seek(int(value)))
+    with dpg.group(horizontal=True):
+        dpg.add_text("views")
+        for view in VIEW_NAMES:
+            dpg.add_checkbox(label=VIEW_LABELS[view], tag=f"view_{view}", default_value=view in session.views,
+                             callback=lambda: _set_views(dash))
+    model, tier = session.current_model()
+    with dpg.group(horizontal=True):
+        dpg.add_text("model")
+        dpg.add_combo(session.models(), default_value=model, tag="model", width=150, callback=lambda: _set_model(dash))
+        dpg.add_combo(session.tiers(), default_value=tier, tag="tier", width=120, callback=lambda: _set_model(dash))
+    with dpg.group(horizontal=True):
+        dpg.add_slider_float(label="contact threshold", tag="threshold", default_value=session.threshold,
+                             min_value=0.02, max_value=0.5, width=140, format="%.2f",
+                             callback=lambda s, value: _set_threshold(dash, value))
+        dpg.add_checkbox(label="outline measured", callback=lambda s, value: setattr(dash, "outline", value))
+    with dpg.group(horizontal=True):
+        dpg.add_button(label="Record", tag="record_button", width=110, enabled=session.can_record,
+                       callback=lambda: session.toggle_recording())
+        dpg.add_button(label="Screenshot", width=110, callback=lambda: dash.request_screenshot())
+        dpg.add_text("", tag="recording_text")
+
+
+def _play_pause(dash: Dashboard) -> None:
+    playback = dash.session.state().playback
+    if playback is not None and playback.paused:
+        dash.session.play()
+    else:
+        dash.session.pause()
+
+
+def _set_views(dash: Dashboard) -> None:
+    dash.session.set_views(tuple(v for v in VIEW_NAMES if dpg.get_value(f"view_{v}")))
+
+
+def _set_model(dash: Dashboard) -> None:
+    dash.session.set_model(dpg.get_value("model"), dpg.get_value("tier"))
+
+
+def _set_threshold(dash: Dashboard, value: float) -> None:
+    try:
+        dash.session.set_threshold(float(value))
+    except UserError as exc:
+        dash.note = str(exc)
+
+
+def build_tables() -> None:
+    with dpg.table(header_row=True, tag="metrics_table", borders_innerH=True):
+        for title in ("official metric", "rolling 3 s", "cumulative"):
+            dpg.add_table_column(label=title)
+        for key, label in METRIC_ROWS:
+            with dpg.table_row():
+                dpg.add_text(label)
+                dpg.add_text("n/a", tag=f"rolling_{key}")
+                dpg.add_text("n/a", tag=f"cumulative_{key}")
+    dpg.add_text("", tag="performance_text", wrap=460)
+    with dpg.table(header_row=True, tag="stage_table"):
+        dpg.add_table_column(label="engine ms")
+        for stage in STAGES:
+            dpg.add_table_column(label=stage)
+        with dpg.table_row():
+            dpg.add_text("mean of 30")
+            for stage in STAGES:
+                dpg.add_text("-", tag=f"stage_{stage}")
+    with dpg.table(header_row=True, tag="device_table", policy=dpg.mvTable_SizingStretchProp):
+        for title, weight in DEVICE_COLUMNS:
+            dpg.add_table_column(label=title, init_width_or_weight=weight)
+        for row in range(DEVICE_ROWS):
+            with dpg.table_row(tag=f"device_row_{row}"):
+                for column in range(len(DEVICE_COLUMNS)):
+                    dpg.add_text("", tag=f"device_{row}_{column}")
+            with dpg.tooltip(f"device_{row}_1"):
+                dpg.add_text("", tag=f"device_{row}_full", wrap=500)
+
+
+def update_tables(dash: Dashboard, state: SessionState) -> None:
+    dpg.set_value("model_text", f"model: {state.model}")
+    dpg.set_value("message_text", dash.note or state.message)
+    dpg.configure_item("record_button", label="Stop recording" if state.recording else "Record")
+    dpg.set_value("recording_text", state.recording or "")
+    playback = state.playback
+    dpg.configure_item("transport", show=playback is not None)
+    if playback is not None:
+        dpg.configure_item("play_button", label="Play" if playback.paused else "Pause")
+        dpg.configure_item("seek", max_value=max(playback.frames - 1, 1))
+        if not dpg.is_item_active("seek"):
+            dpg.set_value("seek", min(playback.position, playback.frames - 1))
+    for key, _ in METRIC_ROWS:
+        dpg.set_value(f"rolling_{key}", _metric(state.rolling, key))
+        dpg.set_value(f"cumulative_{key}", _metric(state.cumulative, key))
+    for stage in STAGES:
+        value = state.stage_ms.get(stage)
+        dpg.set_value(f"stage_{stage}", "skipped" if value is None else f"{value:.1f}")
+    dpg.set_value("performance_text", _performance_line(dash, state))
+    rows = state.sources[:DEVICE_ROWS]
+    for row in range(DEVICE_ROWS):
+        dpg.configure_item(f"device_row_{row}", show=row < len(rows))
+        if row < len(rows):
+            for column, text in enumerate(_device_cells(rows[row])):
+                dpg.set_value(f"device_{row}_{column}", text)
+            dpg.set_value(f"device_{row}_full", rows[row].detail or "no details")
+
+
+def _metric(values: dict[str, float] | None, key: str) -> str:
+    value = None if values is None else values.get(key)
+    return "n/a" if value is None or math.isnan(value) else f"{value:.3f}"
+
+
+def _performance_line(dash: Dashboard, state: SessionState) -> str:
+    latency = state.history.get("latency_ms", np.zeros(0))[-30:]
+    text = f"display {dash.stats.fps:.0f} fps, engine {state.engine_fps:.1f} fps"
+    if latency.size:
+        text += f", capture-to-prediction latency p50 {np.median(latency):.0f} ms, max {latency.max():.0f} ms (last 30)"
+    return text
+
+
+def _device_cells(status) -> tuple[str, str, str, str, str]:
+    rate = "" if status.rate_hz is None else f"{status.rate_hz:.0f} Hz"
+    age = "" if status.age_ms is None else f"{status.age_ms:.0f} ms"
+    state = ("ok" if status.connected else "DOWN") + (f" - {status.detail}" if status.detail else "")
+    return status.name, state, rate, age, str(status.drops)

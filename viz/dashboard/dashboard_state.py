@@ -1,0 +1,99 @@
+"""What the dashboard shows and what it may ask for: the records a session publishes (latest values, read
+by the render loop without waiting) and the control interface a replay or live session implements."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from touchanything.devices.snapshot import Snapshot
+from touchanything.inference.engine.prediction import Prediction
+
+
+@dataclass(frozen=True)
+class SourceStatus:
+    """One row of the device table. rate_hz: measured sample rate; age_ms: now − capture time of the
+    latest sample (None: no sample yet); drops: samples lost or replaced before use."""
+
+    name: str
+    connected: bool
+    rate_hz: float | None = None
+    age_ms: float | None = None
+    drops: int = 0
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class Playback:
+    """Replay transport: the next frame to play, the episode length, paused, real-time factor."""
+
+    position: int
+    frames: int
+    paused: bool
+    speed: float
+
+
+@dataclass(frozen=True)
+class SessionState:
+    """One consistent picture, published by the session and read by the render loop.
+
+    snapshot: the newest camera frame; prediction: the newest prediction and truth: the (2, 21, 21)
+    measured pressure of the prediction's frame (None without a glove / ground truth); rolling and
+    cumulative: official metric dicts (None without ground truth; NaN = undefined); history: recent
+    series by name (volumetric_iou, contact_iou rolling; latency_ms), oldest first; stage_ms: mean
+    engine stage times over recent steps; engine_fps: predictions per second; sources: device rows;
+    playback: None in live mode; model: the running model and tier; message: the latest notice."""
+
+    snapshot: Snapshot | None = None
+    prediction: Prediction | None = None
+    truth: np.ndarray | None = None
+    rolling: dict[str, float] | None = None
+    cumulative: dict[str, float] | None = None
+    metric_frames: int = 0
+    history: dict[str, np.ndarray] = field(default_factory=dict)
+    stage_ms: dict[str, float] = field(default_factory=dict)
+    engine_fps: float = 0.0
+    sources: tuple[SourceStatus, ...] = ()
+    playback: Playback | None = None
+    model: str = ""
+    message: str = ""
+    recording: str | None = None
+
+
+class DashboardSession(Protocol):
+    """Controls are called from the GUI thread and must return at once (slow work goes to a thread)."""
+
+    views: tuple[str, ...]
+    threshold: float
+
+    def state(self) -> SessionState: ...
+
+    def play(self) -> None: ...
+
+    def pause(self) -> None: ...
+
+    def step(self) -> None: ...
+
+    def seek(self, frame: int) -> None: ...
+
+    def set_speed(self, speed: float) -> None: ...
+
+    def set_views(self, views: tuple[str, ...]) -> None: ...
+
+    def set_threshold(self, threshold: float) -> None: ...
+
+    def models(self) -> tuple[str, ...]: ...
+
+    def tiers(self) -> tuple[str, ...]: ...
+
+    def current_model(self) -> tuple[str, str]: ...
+
+    def set_model(self, model: str, tier: str) -> None: ...
+
+    @property
+    def can_record(self) -> bool: ...
+
+    def toggle_recording(self) -> None: ...
+
+    def close(self) -> None: ...
