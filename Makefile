@@ -13,6 +13,7 @@ demo: $(BASE_STAMP)
 	$(VENV)/bin/touchanything demo
 
 test: $(DEV_STAMP) xvfb
+	$(VENV)/bin/ruff check .
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 $(VENV)/bin/python:

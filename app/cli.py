@@ -8,6 +8,7 @@ from touchanything.app.commands import (
     bench_command,
     convert_command,
     demo_command,
+    devices_command,
     eval_command,
     export_onnx_command,
     grids_command,
@@ -22,7 +23,7 @@ from touchanything.app.commands import (
 from touchanything.devices.errors import UserError
 
 COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command, train_command,
-            eval_command, replay_command, live_command, record_command, export_onnx_command, bench_command)
+            eval_command, replay_command, live_command, record_command, devices_command, export_onnx_command, bench_command)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -27,8 +27,8 @@ LIVE_SCENE = Path("scenes/sim.toml")
 
 
 def measure(tier: str | None, frames: int) -> dict:
-    from touchanything.app.commands.demo_command import sample_episodes
     from touchanything.app.commands.live_command import open_live_session
+    from touchanything.app.sessions.bundled import sample_episodes
     from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, default_checkpoint
     from touchanything.app.sessions.replay_session import ReplaySession
     from touchanything.devices.episodes.episode_loader import open_episode

@@ -21,3 +21,12 @@ class DataError(UserError):
         self.path = Path(path)
         self.field = field
         self.problem = problem
+
+
+class DeviceAlreadyConnectedError(UserError):
+    """`connect()` on a device that is already connected: disconnect it first."""
+
+
+class DeviceNotConnectedError(UserError):
+    """An operation that needs a connected device (its bound address, its negotiated format) was asked of
+    one that is not connected: connect it first."""

@@ -4,14 +4,6 @@ from __future__ import annotations
 import numpy as np
 
 JOINTS_PER_HAND = 21
-JOINT_NAMES = (
-    "wrist",
-    "thumb1", "thumb2", "thumb3", "thumb4",
-    "index1", "index2", "index3", "index4",
-    "middle1", "middle2", "middle3", "middle4",
-    "ring1", "ring2", "ring3", "ring4",
-    "pinky1", "pinky2", "pinky3", "pinky4",
-)
 MAX_ABS_XY = 1000.0
 MAX_Z = 1000.0
 

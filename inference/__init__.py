@@ -1,7 +1,3 @@
-"""TouchAnything model, checkpoints, streaming engine and evaluation.
-
-Public entry point: `inference.load_model(checkpoint_path, config_path=None)` → the model in eval mode.
-"""
-from touchanything.inference.model.checkpoint import load_model
-
-__all__ = ["load_model"]
+"""The TouchAnything model and what runs it: `model/` (the official architecture, configs, checkpoints),
+`engine/` (the streaming engine and its runtimes), `training/`, `evaluation/` (the official metric protocol,
+bench). Researchers start from the front door, `import touchanything`."""

@@ -6,7 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from touchanything.devices.episodes.episode_files import write_camera_matrices, write_quality
+from helpers.episode_files import write_quality
+from touchanything.devices.episodes.episode_files import write_camera_matrices
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.snapshot import VIEW_NAMES
 
@@ -147,3 +148,10 @@ def x_display():
 def dashboard_display(x_display, monkeypatch):
     monkeypatch.setenv("DISPLAY", x_display)
     return x_display
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Tests that use the X display carry the `display` marker (deselect them with `-m 'not display'`)."""
+    for item in items:
+        if "x_display" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.display)

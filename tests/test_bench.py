@@ -8,9 +8,10 @@ import pytest
 import torch
 
 from touchanything.app.cli import main
-from touchanything.app.commands.demo_command import sample_episodes
+from touchanything.app.sessions.bundled import sample_episodes
 from touchanything.inference.evaluation.bench import BenchPlan, agreement, bench_model, naive_latency, settings_for
 from touchanything.inference.evaluation.bench_data import latency_clip, load_episode
+from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown, gpu_settings
 from touchanything.inference.evaluation.bench_report import pareto_front, target_checks, write_outputs
 from touchanything.inference.model.model_config import preset
 from touchanything.inference.model.touch_model import TouchAnything
@@ -33,8 +34,9 @@ def test_rows_have_the_documented_fields(nano_rows):
     assert [(r["runtime"], r["precision"]) for r in rows] == [("torch", "fp32"), ("onnx", "int8")]
     for row in rows:
         for key in ("preset", "runtime", "precision", "views", "rate", "output", "p50_ms", "p99_ms", "contact_iou",
-                    "volumetric_iou", "agreement_viou", "peak_rss_mb"):
+                    "volumetric_iou", "agreement_viou", "peak_rss_mb", "device", "gpu_name", "capture"):
             assert key in row
+        assert row["device"] == "cpu" and row["gpu_name"] is None
         assert row["views"] == "ego+wrist_left+wrist_right" and row["latency_frames"] == 10
         assert 0 < row["p50_ms"] <= row["p99_ms"] and row["peak_rss_mb"] > 0
         assert 0 <= row["volumetric_iou"] <= 1 and row["throughput_fps"] > 0
@@ -80,3 +82,16 @@ def test_bench_command_errors_are_clear(tmp_path, capsys):
     assert "--frames" in capsys.readouterr().err
     assert main(["bench", "--quick", "--data", str(tmp_path / "none"), "--out", str(tmp_path)]) == 2
     assert "none: not found" in capsys.readouterr().err
+
+
+def test_the_gpu_bench_runs_its_settings_on_the_cpu_eagerly():
+    clip = latency_clip(sample_episodes()[0], 16)
+    rows, naive = bench_presets_on(torch.device("cpu"), clip, rounds=1, per_round=2, naive_steps=1, presets=("nano",),
+                                   progress=lambda message: None)
+    assert len(rows) == len(gpu_settings("nano", torch.device("cpu"))) == 8  # fp32/bf16 × 3 views/ego × graphs/eager
+    assert {r["precision"] for r in rows} == {"fp32", "bf16"}  # fp16 needs a GPU
+    assert {r["capture"] for r in rows} == {"eager (CUDA graphs need a CUDA GPU)"}
+    assert all(r["device"] == "cpu" and r["gpu_name"] is None and r["peak_gpu_mb"] is None and r["p50_ms"] > 0 for r in rows)
+    assert set(naive) == {"nano fp32", "nano bf16"} and all(v > 0 for v in naive.values())
+    table = gpu_markdown({"machine": "test", "device": "cpu", "rows": rows, "naive": naive})
+    assert table.count("| nano torch-") == 8 and "| nano fp32 |" in table and "eager |" in table

@@ -15,8 +15,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from touchanything.devices.episodes.video_io import VideoWriter
-from touchanything.devices.errors import UserError
-from touchanything.devices.hardware.camera_source import CameraSource
+from touchanything.devices.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, UserError
+from touchanything.devices.hardware.camera_source import CameraFormat, CameraSource
 from touchanything.devices.hardware.oak_camera import DepthaiFrameSource, OakCamera, OakCameraConfig, host_clock_offset_us
 from touchanything.devices.hardware.opencv_camera import OpenCVCamera, OpenCVCameraConfig
 from touchanything.devices.hardware.threaded_source import LatestSlot, SourceEnded, now_us
@@ -98,7 +98,7 @@ def test_failed_connect_closes_and_leaves_no_thread_and_double_connect_is_refuse
     assert camera.closed == 1 and not camera.is_connected and not reader_threads()
     camera = ScriptedCamera([0])
     with camera:
-        with pytest.raises(UserError, match="already connected"):
+        with pytest.raises(DeviceAlreadyConnectedError, match="^scripted is already connected; disconnect it first$"):
             camera.connect()
     camera.disconnect()  # a second disconnect does nothing
     assert camera.closed == 1
@@ -166,6 +166,19 @@ def test_replay_end_stops_the_reader_with_a_reason(tmp_path):
         assert 1 <= source.counters.samples <= 6 and source.latest() is not None
         assert source.status().startswith("stopped (the depthai pipeline stopped)")
     assert not reader_threads()
+
+
+def test_replay_reports_the_size_its_frames_have_when_it_differs_from_the_request(tmp_path):
+    video = write_video(tmp_path / "small.mp4", frames=12, size=(48, 64))
+    source = DepthaiFrameSource("replay", replay_builder(video, dai.ImgFrame.Type.RGB888i, loop=True),
+                                requested=CameraFormat(640, 480, 30))
+    with source:
+        wait_for(lambda: source.counters.samples >= 2)
+        assert (source.negotiated.width, source.negotiated.height) == (64, 48)
+        assert ", negotiated 64×48" in source.status() and "(asked 640×480 at 30 fps)" in source.status()
+        assert "resized" not in source.status()  # depthai frames are delivered as they come
+    with pytest.raises(DeviceNotConnectedError, match="not connected"):
+        _ = source.negotiated
 
 
 @pytest.mark.skipif(sys.platform != "linux", reason="dai.Clock and time.monotonic share CLOCK_MONOTONIC on Linux")
@@ -251,3 +264,29 @@ def test_absent_or_unreadable_sources_are_user_errors(tmp_path):
     assert not reader_threads()
     with pytest.raises(UserError, match="fps must be a positive number"):
         OpenCVCameraConfig(0, fps=float("inf"))
+
+
+def test_opencv_reads_back_what_the_file_negotiates_and_says_so_when_it_differs(tmp_path):
+    video = write_video(tmp_path / "small.mp4", frames=30, fps=20, size=(48, 64))
+    camera = OpenCVCamera(OpenCVCameraConfig(str(video), width=32, height=24, fps=30, loop=True))
+    assert camera.requested == CameraFormat(32, 24, 30)
+    with pytest.raises(DeviceNotConnectedError, match=f"^OpenCV camera {video} is not connected"):
+        _ = camera.negotiated
+    with camera:
+        assert camera.negotiated == CameraFormat(64, 48, 20.0)
+        wait_for(lambda: camera.latest() is not None)
+        assert camera.latest().image.shape == (24, 32, 3)  # resized to the request, and the status says so
+        wait_for(lambda: "Hz" in camera.status())
+        assert camera.status().endswith(", negotiated 64×48 at 20 fps (asked 32×24 at 30 fps; frames resized to 32×24)")
+    matching = OpenCVCamera(OpenCVCameraConfig(str(video), width=64, height=48, fps=20))
+    with matching:
+        assert matching.negotiated == CameraFormat(64, 48, 20.0)
+        wait_for(lambda: matching.latest() is not None)
+        assert "negotiated" not in matching.status()
+
+
+def test_camera_format_comparison():
+    asked = CameraFormat(640, 480, 30)
+    assert not CameraFormat(640, 480, 30.2).differs_from(asked) and not CameraFormat(640, 480).differs_from(asked)
+    assert CameraFormat(640, 480, 15).differs_from(asked) and CameraFormat(1280, 720, 30).differs_from(asked)
+    assert str(CameraFormat(1280, 720, 29.97)) == "1280×720 at 29.97 fps" and str(CameraFormat(64, 48)) == "64×48"

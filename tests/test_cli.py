@@ -46,6 +46,7 @@ def test_info_on_a_dataset_root_lists_each_trajectory_s_problems(tmp_path, capsy
     assert out.count("Home/b/2/wilor_hands.json: line") == 3 and "      … and 2 more" in out
 
 
+@pytest.mark.multiprocess
 def test_convert_info_and_split_on_a_dataset(raw_root, tmp_path, capsys):
     out_root = tmp_path / "h5"
     assert main(["convert", str(raw_root), str(out_root), "--workers", "2", "--compression-level", "1"]) == 0
@@ -106,7 +107,7 @@ def test_demo_replays_an_episode_into_a_video(episode_dir, tmp_path, capsys):
 
 def test_demo_without_a_display_falls_back_to_the_video(tmp_path, capsys, monkeypatch):
     """No X display: the bundled sample through the bundled model into a video, saying why and where."""
-    from touchanything.app.commands.demo_command import sample_episodes
+    from touchanything.app.sessions.bundled import sample_episodes
 
     monkeypatch.delenv("DISPLAY", raising=False)
     assert len(sample_episodes()) == 3

@@ -12,9 +12,9 @@ import cv2
 import numpy as np
 
 from touchanything.app.cli import main
-from touchanything.app.commands.demo_command import sample_episodes
-from touchanything.app.commands.replay_command import replay_in_dashboard
-from touchanything.app.sessions.engine_choice import MODELS_DIR, ModelChoice, build_engine, default_checkpoint
+from touchanything.app.sessions.bundled import MODELS_DIR, sample_episodes
+from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, default_checkpoint
+from touchanything.app.sessions.replay_runs import replay_in_dashboard
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.snapshot import VIEW_NAMES

@@ -8,8 +8,8 @@ import torch
 from touchanything.app.cli import main
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.inference.engine.engine_config import EngineConfig, onnx_cache_dir
-from touchanything.inference.engine.engine_runtime import OnnxRuntime
+from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.onnx_runtime import OnnxRuntime, onnx_cache_dir
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.checkpoint import build_model, save_checkpoint
 from touchanything.inference.model.model_config import PRESETS
@@ -86,7 +86,7 @@ def test_onnx_graphs_are_exported_once_into_the_cache(exported, tmp_path, monkey
 def test_runtime_selection_errors_are_clear(exported, tmp_path, capsys):
     model, graphs = exported
     bad = [(EngineConfig(runtime="tensorrt"), "unknown runtime"), (EngineConfig(precision="int8"), "no precision"),
-           (EngineConfig(precision="fp16"), "fp16 needs a GPU"), (EngineConfig(output="middle"), "output position"),
+           (EngineConfig(precision="fp16"), "fp16 needs a CUDA GPU"), (EngineConfig(output="middle"), "output position"),
            (EngineConfig(every=0), "whole number"), (EngineConfig(every=2, output="centre"), "newest"),
            (EngineConfig(views=("wrist_left",)), "must include ego"),
            (EngineConfig(runtime="onnx", onnx_dir=tmp_path), "export-onnx")]

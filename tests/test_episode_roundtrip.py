@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pytest
 
+from helpers.episode_files import write_masks, write_quality
 from tests.conftest import frame_image, glove_sample, wilor_hands, write_episode
 from touchanything.devices.episodes.episode_files import (
     Masks,
@@ -14,9 +15,7 @@ from touchanything.devices.episodes.episode_files import (
     read_pressure_grids,
     read_quality,
     write_camera_matrices,
-    write_masks,
     write_pressure_grids,
-    write_quality,
 )
 from touchanything.devices.episodes.episode_loader import find_raw_episodes, open_episode
 from touchanything.devices.episodes.episode_streams import read_glove, read_hands, read_trackers

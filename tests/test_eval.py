@@ -3,17 +3,35 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import socket
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from touchanything.app.cli import main
-from touchanything.devices.episodes.dataset_split import read_split
+from touchanything.devices.episodes.dataset_split import SPLIT_KEYS, read_split, write_split
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.inference.evaluation.evaluation import SPAN, predict_trajectory
-from touchanything.inference.evaluation.metrics import ALL_METRICS
+from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.inference.evaluation.evaluation import trajectory_metrics
+from touchanything.inference.evaluation.metrics import ALL_METRICS, ground_truth_for_metrics
+from touchanything.inference.evaluation.trajectory_prediction import predict_trajectory
 from touchanything.inference.model.checkpoint import load_model
+from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
+from touchanything.inference.model.pose_encoder import prepare_poses
+from touchanything.inference.model.preprocess import resize_frame, to_model_input
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 def nonempty_split(root) -> str:
@@ -77,3 +95,60 @@ def test_eval_missing_checkpoint(sim_hdf5_root, tmp_path, capsys):
     argv = ["eval", "--checkpoint", str(tmp_path / "none.pth"), "--data", str(sim_hdf5_root), "--split", nonempty_split(sim_hdf5_root)]
     assert main(argv) == 2
     assert "checkpoint not found" in capsys.readouterr().err
+
+
+def clip_by_clip(model, episode, views: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The official protocol as written: the whole model on every stride-1 clip, one clip at a time."""
+    count = episode.num_frames
+    frames = {v: to_model_input(np.stack([resize_frame(episode.views[v].read(i), model.config.image_size)
+                                          for i in range(count)])) for v in views}
+    poses = torch.from_numpy(prepare_poses(episode.wilor.joints.reshape(count, 42, 3), episode.wilor.valid))
+    total, covered = np.zeros((count, 2, 21, 21)), np.zeros(count)
+    causal = np.full((count, 2, 21, 21), np.nan, np.float32)
+    for start in range(count - SPAN + 1):
+        index = start + np.arange(CLIP_LENGTH) * FRAME_INTERVAL
+        with torch.no_grad():
+            out = model(poses=poses[index][None], views={v: frames[v][index][None] for v in views})["tactile"][0].numpy()
+        total[index] += out
+        covered[index] += 1
+        causal[index[-1]] = out[-1]
+    return (total / covered[:, None, None, None]).astype(np.float32), causal
+
+
+def test_each_frame_encoded_once_gives_the_clip_by_clip_protocol(sim_hdf5_root, tiny_checkpoint):
+    model = load_model(tiny_checkpoint)
+    path = read_split(sim_hdf5_root / "split.json")[nonempty_split(sim_hdf5_root)][0]
+    encoded = []
+    with open_episode(path) as episode:
+        for batch_size in (1, 5, 64):
+            prediction = predict_trajectory(model, episode, VIEW_NAMES, batch_size, "views", on_frames=encoded.append)
+            stitched, causal = clip_by_clip(model, episode, VIEW_NAMES)
+            np.testing.assert_allclose(prediction.stitched, stitched, atol=1e-5)
+            np.testing.assert_allclose(prediction.causal, causal, atol=1e-5)
+            assert sum(encoded) == episode.num_frames  # each frame once
+            encoded.clear()
+        gt = ground_truth_for_metrics(episode.pressure.grids, bool(episode.pressure.attrs.get("normalized", False)))
+    bend = TactileLayout.default().bend
+    batched, reference = trajectory_metrics(prediction.stitched, gt, bend), trajectory_metrics(stitched, gt, bend)
+    for key in ALL_METRICS:
+        assert batched[key] == pytest.approx(reference[key], abs=1e-6, nan_ok=True)
+
+
+@pytest.mark.multiprocess
+def test_eval_sharded_over_two_processes_equals_one(sim_hdf5_root, tiny_checkpoint, tmp_path):
+    files = sorted(str(p) for p in sim_hdf5_root.rglob("*.hdf5"))
+    assert len(files) == 3  # an odd count: the two processes get two and one
+    write_split(tmp_path / "split.json", {k: [Path(f) for f in files] if k == "test_seen" else [] for k in SPLIT_KEYS},
+                absolute=True)
+    argv = ["eval", "--checkpoint", str(tiny_checkpoint), "--data", str(sim_hdf5_root), "--split-file",
+            str(tmp_path / "split.json"), "--views", "all", "--device", "cpu", "--batch-size", "16"]
+    assert main([*argv, "--out", str(tmp_path / "one")]) == 0
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    command = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", "--master_port", str(free_port()),
+               "-m", "touchanything.app.cli", *argv, "--out", str(tmp_path / "two")]
+    proc = subprocess.run(command, capture_output=True, text=True, env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.count("# Evaluation on") == 1  # only the main process reports
+    one, two = (json.loads((tmp_path / name / "results.json").read_text()) for name in ("one", "two"))
+    assert [row["path"] for row in two["results"][0]["trajectories"]] == files
+    assert json.dumps(one["results"], sort_keys=True) == json.dumps(two["results"], sort_keys=True)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from touchanything.app.commands.demo_command import sample_episodes
+from touchanything.app.sessions.bundled import sample_episodes
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.viz.hand_projection import draw_hands, project_wilor

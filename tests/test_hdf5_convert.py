@@ -55,6 +55,7 @@ def test_converted_file_has_the_official_schema_and_equals_the_raw_episode(episo
                 assert np.array_equal(hdf5.views[view].read(i), raw.views[view].read(i))
 
 
+@pytest.mark.multiprocess
 def test_dataset_conversion_with_workers_reports_and_skip_existing(tmp_path):
     raw_root = tmp_path / "raw"
     for i, name in enumerate(("Home/a/1", "Home/b/2", "Office/c/3")):

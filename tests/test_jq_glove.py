@@ -266,7 +266,7 @@ def test_glove_streams_samples_through_a_pty(tmp_path: Path) -> None:
     fds, threads = open_fds(), threading.active_count()
     with SimulatedGloveSerial("left", indexed_sample, tmp_path) as sim:
         glove = JQGlove(JQGloveConfig(str(sim.path), "left"))
-        assert glove.status() == "not connected" and not glove.is_connected
+        assert glove.status() == "disconnected" and not glove.is_connected
         with glove:
             assert glove.is_connected
             readings = []
@@ -276,7 +276,7 @@ def test_glove_streams_samples_through_a_pty(tmp_path: Path) -> None:
             collect(glove, readings, lambda: glove.counters.parser.resyncs >= 1
                                 and glove.counters.samples >= resynced + 20, "a resync and 20 more samples")
             status = glove.status()
-        assert glove.status() == "not connected"
+        assert glove.status() == "disconnected"
     for reading in readings:
         check_reading(reading, "left")
     stamps, indices = [r.t_us for r in readings], [sample_index(r.raw) for r in readings]

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from touchanything.app.commands.demo_command import sample_episodes
+from touchanything.app.sessions.bundled import sample_episodes
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 from touchanything.devices.snapshot import Snapshot

@@ -189,6 +189,7 @@ def test_a_disk_error_is_reported_and_what_was_written_is_kept(tmp_path):
         check_synthetic(episode, 10)
 
 
+@pytest.mark.multiprocess
 def test_a_killed_recording_replays_up_to_its_last_second_and_its_grids_can_be_rebuilt(tmp_path):
     folder = tmp_path / "Lab" / "task" / "killed"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS.parent), str(TESTS)])}

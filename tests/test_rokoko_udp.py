@@ -14,7 +14,7 @@ import pytest
 from helpers.rokoko_messages import DEADLINE_S, GLOVE_AT_REST, pack, studio_actor, studio_hands, v3_message
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
-from touchanything.devices.errors import UserError
+from touchanything.devices.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, UserError
 from touchanything.devices.hardware.rokoko_protocol import LZ4_MAGIC, encode_datagram
 from touchanything.devices.hardware.rokoko_udp import RokokoConfig, RokokoReceiver
 from touchanything.devices.sim.rokoko_sender import RokokoSenderConfig, SimulatedRokokoSender, episode_hands_provider
@@ -61,7 +61,7 @@ def test_receiver_drops_and_counts_bad_datagrams_while_good_ones_flow(sender_soc
             time.sleep(0.002)
         assert wait_for(lambda: receiver.counters.datagrams == len(sequence))
         counters = receiver.counters
-        assert (counters.decoded, counters.malformed, counters.oversized, counters.no_hand) == (4, 4, 2, 0)
+        assert (counters.samples, counters.malformed, counters.oversized, counters.no_hand) == (4, 4, 2, 0)
         reading = receiver.latest()
         np.testing.assert_array_equal(reading.frame.joints, (hands + 2).astype(np.float32))
         assert reading.frame.timestamp == 2 / 30
@@ -93,12 +93,14 @@ def test_disconnect_is_prompt_and_leaks_nothing():
     for _ in range(3):
         receiver.connect()
         assert receiver.is_connected
-        with pytest.raises(RuntimeError, match="already connected"):
+        with pytest.raises(DeviceAlreadyConnectedError, match="already connected"):
             receiver.connect()
         started = time.monotonic()
         receiver.disconnect()
         assert time.monotonic() - started < 2.0
     receiver.disconnect()
+    with pytest.raises(DeviceNotConnectedError, match="not connected"):
+        _ = receiver.bound_address
     assert threading.active_count() == threads and open_fds() == fds
 
 
@@ -164,7 +166,7 @@ def test_sender_to_receiver_on_loopback_replays_the_episode_exactly(tmp_path):
         counters = receiver.counters
     assert sender.send_errors == 0 and 15 <= sender.frames_sent <= 34
     assert abs(sender.frames_sent + sender.frames_skipped - 30 * elapsed) <= 4
-    assert counters.decoded == sender.frames_sent and counters.malformed == counters.oversized == 0
+    assert counters.samples == sender.frames_sent and counters.malformed == counters.oversized == 0
     ordered = [readings[t] for t in sorted(readings)]
     assert len(ordered) >= 10
     stamps = [r.frame.timestamp for r in ordered]
@@ -207,6 +209,6 @@ def test_sender_skips_frames_after_a_stall_instead_of_bursting():
         host, port = receiver.bound_address
         with SimulatedRokokoSender(stalling, RokokoSenderConfig(host=host, port=port)) as sender:
             assert wait_for(lambda: sender.frames_sent >= 12)
-        assert wait_for(lambda: receiver.counters.decoded == sender.frames_sent)
+        assert wait_for(lambda: receiver.counters.samples == sender.frames_sent)
     assert asked[asked.index(stalled[0]) + 1] >= stalled[0] + 8
     assert sender.frames_skipped == asked[-1] + 1 - sender.frames_sent

@@ -13,7 +13,7 @@ from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.engine.engine_config import EngineConfig
 from touchanything.inference.engine.frame_ring import CachedFrame, FrameRing
 from touchanything.inference.engine.streaming_engine import StreamingEngine
-from touchanything.inference.evaluation.evaluation import predict_trajectory
+from touchanything.inference.evaluation.trajectory_prediction import predict_trajectory
 from touchanything.inference.model.model_config import preset
 from touchanything.inference.model.pose_encoder import prepare_poses
 from touchanything.inference.model.preprocess import to_model_input

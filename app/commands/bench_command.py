@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
 import sys
@@ -11,14 +12,16 @@ from pathlib import Path
 import onnxruntime
 import torch
 
-from touchanything.app.commands.demo_command import SAMPLE_DIR
-from touchanything.app.sessions.engine_choice import MODELS_DIR
+from touchanything.app.sessions.bundled import MODELS_DIR, SAMPLE_DIR, bundled_models
+from touchanything.app.sessions.engine_choice import add_device_argument
 from touchanything.devices.errors import UserError
 from touchanything.inference.evaluation.bench import BenchPlan, bench_model
 from touchanything.inference.evaluation.bench_data import episode_paths, latency_clip, load_episode
+from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown
 from touchanything.inference.evaluation.bench_report import markdown, target_checks, write_outputs
 from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.model_config import preset
+from touchanything.inference.model.torch_device import device_label, resolve_device
 from touchanything.inference.model.touch_model import TouchAnything
 
 LATENCY_CLIP_FRAMES = 60
@@ -34,11 +37,13 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--models", type=Path, nargs="+",
                         help="model folders holding best_model.pth (default: every bundled model)")
     parser.add_argument("--frames", type=int, help="accuracy on the first N frames of each episode (quick: 150)")
+    add_device_argument(parser)
     parser.set_defaults(run=run)
 
 
-def bundled_models(folders: list[Path] | None) -> dict[str, TouchAnything]:
-    folders = folders or sorted(p for p in MODELS_DIR.iterdir() if (p / "best_model.pth").is_file())
+def load_models(folders: list[Path] | None) -> dict[str, TouchAnything]:
+    """name → model for each folder (default: every bundled model), smallest first by parameter count."""
+    folders = folders or sorted(checkpoint.parent for checkpoint in bundled_models().values())
     if not folders:
         raise UserError(f"{MODELS_DIR}: no bundled models; pass --models")
     models = {Path(f).name: load_model(Path(f) / "best_model.pth") for f in folders}
@@ -50,12 +55,33 @@ def machine() -> str:
             f"onnxruntime {onnxruntime.__version__}")
 
 
+def run_on_gpu(args: argparse.Namespace, device: torch.device) -> int:
+    """The GPU settings (`bench_gpu`) into OUT/engine_gpu.{json,md}."""
+    paths = episode_paths(args.data)
+    clip = latency_clip(paths[0], LATENCY_CLIP_FRAMES)
+    started = time.perf_counter()
+    rounds, per_round, naive_steps = (2, 10, 10) if args.quick else (5, 30, 30)
+    rows, naive = bench_presets_on(device, clip, rounds, per_round, naive_steps,
+                                   progress=lambda m: print(f"[{time.perf_counter() - started:6.0f} s] {m}", file=sys.stderr))
+    record = {"machine": machine(), "device": device_label(device), "quick": args.quick, "rows": rows, "naive": naive,
+              "seconds": time.perf_counter() - started}
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "engine_gpu.json").write_text(json.dumps(record, indent=1) + "\n")
+    (args.out / "engine_gpu.md").write_text(gpu_markdown(record))
+    print(gpu_markdown(record))
+    print(f"written: {args.out / 'engine_gpu.json'}, {args.out / 'engine_gpu.md'}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
+    device = resolve_device(args.device)
+    if device.type == "cuda":
+        return run_on_gpu(args, device)
     frames = args.frames if args.frames is not None else (150 if args.quick else None)
     if frames is not None and frames < 15:
         raise UserError(f"--frames must be at least 15 (one 8-frame window), got {frames}")
     paths = episode_paths(args.data)
-    models = bundled_models(args.models)
+    models = load_models(args.models)
     if args.quick:
         models = dict(list(models.items())[:1])
     clip = latency_clip(paths[0], LATENCY_CLIP_FRAMES)

@@ -5,14 +5,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.app.commands.replay_command import replay_in_dashboard, replay_to_video
-from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint
-from touchanything.devices.episodes.episode_loader import find_raw_episodes
+from touchanything.app.sessions.bundled import SAMPLE_DIR, sample_episodes
+from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint
+from touchanything.app.sessions.replay_runs import replay_in_dashboard, replay_to_video
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.display import display_problem
 
-SAMPLE_DIR = Path(__file__).resolve().parents[2] / "recordings" / "sample"
 DEMO_VIDEO = SAMPLE_DIR.parent / "demo.mp4"
 
 
@@ -21,12 +20,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("episode", type=Path, nargs="?", help="episode folder or .hdf5 (default: the bundled sample)")
     parser.add_argument("--headless", action="store_true", help="write the comparison video instead of a window")
     parser.add_argument("--out", type=Path, default=DEMO_VIDEO, help=f"video for --headless (default: {DEMO_VIDEO})")
+    add_device_argument(parser)
     parser.set_defaults(run=run)
-
-
-def sample_episodes() -> list[Path]:
-    """The bundled sample episodes (raw folders under recordings/sample)."""
-    return find_raw_episodes(SAMPLE_DIR) if SAMPLE_DIR.is_dir() else []
 
 
 def run(args: argparse.Namespace) -> int:
@@ -36,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
         if not samples:
             raise UserError(f"{SAMPLE_DIR}: no bundled sample episode found; pass an episode path")
         path = samples[0]
-    choice = ModelChoice(default_checkpoint())
+    choice = ModelChoice(default_checkpoint(), device=args.device)
     problem = None if args.headless else display_problem()
     if problem:
         print(f"no dashboard: {problem}. Writing the comparison video instead.")

@@ -9,11 +9,20 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from touchanything.devices.episodes.dataset_split import SPLIT_KEYS, read_split
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.errors import UserError
 from touchanything.inference.evaluation.evaluation import VIEW_SETS, EvaluationResult, evaluate
 from touchanything.inference.evaluation.metrics import DETECTION_METRICS, EVENT_METRICS, METRICS
 from touchanything.inference.model.checkpoint import load_model
+from touchanything.inference.model.torch_device import (
+    DEVICE_HELP,
+    PRECISIONS,
+    ProcessGroup,
+    check_precision,
+    device_label,
+    join_process_group,
+    resolve_device,
+)
 from touchanything.viz.comparison_video import comparison_frame, write_comparison_video
 
 TIMING_COLUMNS = DETECTION_METRICS[:3] + EVENT_METRICS[:4]
@@ -33,6 +42,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--batch-size", type=int, default=16, help="clips per forward pass")
     parser.add_argument("--ego-path", choices=("frames", "views"), default="frames",
                         help="ego-only through the official frames= path (default) or the multi-view encoder")
+    parser.add_argument("--device", default="auto", help=DEVICE_HELP)
+    parser.add_argument("--precision", default="fp32", choices=tuple(PRECISIONS),
+                        help="autocast precision (the official script evaluates under fp16 on a GPU; default fp32)")
     parser.add_argument("--out", type=Path, help="folder for results.json and results.md")
     parser.add_argument("--video", action="store_true", help="also write a comparison video per trajectory into OUT")
     parser.set_defaults(run=run)
@@ -71,7 +83,7 @@ def trajectory_frames(episode, prediction, gt):
 
 
 def split_files(data: Path, split: str, split_file: Path | None, num_traj: int | None) -> list[Path]:
-    files = read_split(split_file or data / "split.json")[split]
+    files = read_split(split_file or data / SPLIT_FILE)[split]
     if num_traj is not None:
         if num_traj < 1:
             raise UserError(f"--num-traj must be at least 1, got {num_traj}")
@@ -84,28 +96,43 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
     return files
 
 
+def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: str, group: ProcessGroup) -> EvaluationResult:
+    """One view configuration; the progress bar (main process) shows encoded frames/s and trajectories done."""
+    mine = len(range(group.rank, len(files), group.world))
+    finished = []
+    with tqdm(unit=" frames", unit_scale=True, desc=f"eval {views}", disable=not group.is_main) as bar:
+        def done(row, episode, prediction, gt) -> None:
+            if args.video:
+                video = args.out / f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}.mp4"
+                write_comparison_video(video, trajectory_frames(episode, prediction.stitched, gt))
+            finished.append(row)
+            bar.set_postfix(trajectories=f"{len(finished)}/{mine}")
+
+        return evaluate(model, files, views, args.batch_size, args.ego_path, args.precision, group,
+                        on_trajectory=done, on_frames=bar.update)
+
+
 def run(args: argparse.Namespace) -> int:
     if args.batch_size < 1:
         raise UserError(f"--batch-size must be at least 1, got {args.batch_size}")
     if args.video and not args.out:
         raise UserError("--video needs --out (the folder the videos go to)")
     files = split_files(args.data, args.split, args.split_file, args.num_traj)
-    model = load_model(args.checkpoint, args.config)
+    group = join_process_group(args.device)
+    device = resolve_device(args.device, group.local_rank)
+    check_precision(args.precision, device)
+    model = load_model(args.checkpoint, args.config).to(device)
+    if group.is_main:
+        print(f"eval on {device_label(device)}, {args.precision}, {len(files)} trajectories"
+              + (f" over {group.world} processes" if group.world > 1 else ""))
     if args.out:
         try:
             args.out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise UserError(f"{args.out}: cannot create the output folder ({exc.strerror})") from None
-    results = []
-    for views in args.views:
-        with tqdm(total=len(files), unit="traj", desc=f"eval {views}") as bar:
-            def done(row, episode, prediction, gt, views=views) -> None:
-                if args.video:
-                    video = args.out / f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}.mp4"
-                    write_comparison_video(video, trajectory_frames(episode, prediction.stitched, gt))
-                bar.update(1)
-
-            results.append(evaluate(model, files, views, args.batch_size, args.ego_path, on_trajectory=done))
+    results = [_evaluate_views(args, model, files, views, group) for views in args.views]
+    if not group.is_main:
+        return 0
     table = markdown(results, args.split)
     print(table)
     if args.out:

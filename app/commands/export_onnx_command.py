@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.inference.engine.engine_runtime import OnnxRuntime, TorchRuntime
+from touchanything.inference.engine.engine_runtime import TorchRuntime
 from touchanything.inference.engine.onnx_export import WINDOW, export_onnx
+from touchanything.inference.engine.onnx_runtime import OnnxRuntime
 from touchanything.inference.model.checkpoint import load_model
 
 

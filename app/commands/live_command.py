@@ -3,10 +3,13 @@ with `--headless` for a fixed time with a status line per second (no display nee
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
 import numpy as np
+
+from touchanything.app.sessions.engine_choice import add_device_argument
 
 SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
 
@@ -16,12 +19,14 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--scene", type=Path, required=True, help="scene file (TOML), e.g. scenes/sim.toml")
     parser.add_argument("--headless", action="store_true", help="no window: run for --seconds and print status")
     parser.add_argument("--seconds", type=float, default=10.0, help="how long --headless runs (default 10)")
+    add_device_argument(parser, default=None)
     parser.set_defaults(run=run)
 
 
-def open_live_session(scene_path: Path):
-    """The scene's rig and model as a LiveSession (not started); a model that fails to load leaves the
-    session without predictions, with the reason in its message."""
+def open_live_session(scene_path: Path, device: str | None = None):
+    """The scene's rig and model as a LiveSession (not started), the model on `device` when given (else the
+    scene's); a model that fails to load leaves the session without predictions, with the reason in its
+    message."""
     from touchanything.app.sessions.engine_choice import build_engine
     from touchanything.app.sessions.live_session import LiveSession
     from touchanything.app.sessions.scene import read_scene
@@ -30,12 +35,13 @@ def open_live_session(scene_path: Path):
     from touchanything.devices.snapshot import VIEW_NAMES
 
     scene = read_scene(scene_path)
+    choice = scene.model if device is None else dataclasses.replace(scene.model, device=device)
     try:
-        engine, message = build_engine(scene.model, VIEW_NAMES), ""
+        engine, message = build_engine(choice, VIEW_NAMES), ""
     except UserError as exc:
         engine, message = None, f"no prediction: {exc}"
         print(message)
-    return LiveSession(LiveRig(scene), engine, scene.model, message)
+    return LiveSession(LiveRig(scene), engine, choice, message)
 
 
 def run_headless(session, seconds: float) -> dict:
@@ -54,6 +60,8 @@ def run_headless(session, seconds: float) -> dict:
     summary = {"snapshots": session.frames.count, "predictions": 0 if session.live is None else session.live.stats.processed,
                "dropped": 0 if session.live is None else session.live.stats.dropped,
                "latency_p50_ms": float(np.median(history)) if history.size else None, "cumulative": state.cumulative}
+    engine = "" if session.live is None else f", {session.live.engine.runtime.capture}"
+    print(f"model     {state.model}{engine}")
     print(f"summary   {summary['snapshots']} snapshots, {summary['predictions']} predictions, {summary['dropped']} "
           f"dropped by the engine; latency p50 {summary['latency_p50_ms'] or float('nan'):.0f} ms")
     if state.cumulative is not None:
@@ -70,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
         from touchanything.devices.errors import UserError
 
         raise UserError(f"cannot open the dashboard: {problem}; use --headless")
-    session = open_live_session(args.scene)
+    session = open_live_session(args.scene, args.device)
     session.start()
     if args.headless:
         try:

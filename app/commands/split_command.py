@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.devices.episodes.dataset_split import SPLIT_KEYS, SplitConfig, build_split, write_split
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, SplitConfig, build_split, write_split
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -23,7 +23,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     config = SplitConfig(args.seed, args.unseen_ratio, args.min_frames, args.min_wilor_valid)
     split, excluded = build_split(args.hdf5_root, config)
-    out = args.out or args.hdf5_root / "split.json"
+    out = args.out or args.hdf5_root / SPLIT_FILE
     write_split(out, split, absolute=args.absolute)
     print(f"{out}: " + ", ".join(f"{k} {len(split[k])}" for k in SPLIT_KEYS) + f"; excluded {len(excluded)}")
     for path, reason in excluded.items():

@@ -1,28 +1,36 @@
-"""Which model and runtime the engine runs: the bundled models, a user's checkpoint, and the runtime tiers
-offered by the command line and the dashboard's switch."""
+"""Which model and runtime the engine runs: a bundled model (the default one, see `bundled`) or a user's
+checkpoint, and the runtime tiers offered by the command line and the dashboard's switch."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+import argparse
+from dataclasses import dataclass, replace
 from pathlib import Path
 
+import torch
+
+from touchanything.app.sessions.bundled import MODELS_DIR, bundled_models
 from touchanything.inference.engine.engine_config import EngineConfig
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.checkpoint import load_model
+from touchanything.inference.model.torch_device import DEVICE_HELP, device_label
 
-MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
 DEFAULT_MODEL = "nano"
 CPU_TIERS = ("torch fp32", "torch bf16", "onnx fp32", "onnx int8")
-"""Runtime + precision pairs that run on this machine's CPU (fp16 needs a GPU)."""
+"""Runtime + precision pairs that run on a CPU (fp16 needs a GPU)."""
+GPU_TIERS = ("torch fp32", "torch bf16", "torch fp16")
+"""Runtime + precision pairs that run on a CUDA GPU (ONNX Runtime here is the CPU build)."""
 
 
 @dataclass(frozen=True)
 class ModelChoice:
-    """A checkpoint (config.yaml beside it unless `config` is given) and its runtime tier."""
+    """A checkpoint (config.yaml beside it unless `config` is given), its runtime tier and the `--device`
+    setting (auto, cpu, cuda, cuda:N)."""
 
     checkpoint: Path
     config: Path | None = None
     runtime: str = "torch"
     precision: str = "fp32"
+    device: str = "auto"
 
     @property
     def tier(self) -> str:
@@ -30,27 +38,39 @@ class ModelChoice:
 
     def with_tier(self, tier: str) -> ModelChoice:
         runtime, precision = tier.split()
-        return ModelChoice(self.checkpoint, self.config, runtime, precision)
+        return replace(self, runtime=runtime, precision=precision)
+
+    def with_checkpoint(self, checkpoint: Path) -> ModelChoice:
+        """Another checkpoint (its own config.yaml) at the same tier and device."""
+        return replace(self, checkpoint=checkpoint, config=None)
 
 
-def bundled_models() -> dict[str, Path]:
-    """name → checkpoint of every model shipped under models/ (smallest first by file size)."""
-    found = [p for p in MODELS_DIR.glob("*/best_model.pth")]
-    return {p.parent.name: p for p in sorted(found, key=lambda p: p.stat().st_size)}
+def add_device_argument(parser: argparse.ArgumentParser, default: str | None = "auto") -> None:
+    """`--device` for a command that runs the model (default None: the scene file's setting)."""
+    where = "" if default else " (default: the scene's [model] device, else auto)"
+    parser.add_argument("--device", default=default, help=f"where the model runs: {DEVICE_HELP}{where}")
 
 
 def default_checkpoint() -> Path:
+    """The bundled model every command and scene runs unless told otherwise."""
     return MODELS_DIR / DEFAULT_MODEL / "best_model.pth"
 
 
-def model_label(choice: ModelChoice) -> str:
-    """A short name: the bundled model's folder name, else the checkpoint's path."""
+def tiers_for(device: torch.device) -> tuple[str, ...]:
+    """The tiers the dashboard offers for an engine on `device`."""
+    return GPU_TIERS if device.type == "cuda" else CPU_TIERS
+
+
+def model_label(choice: ModelChoice, engine: StreamingEngine | None = None) -> str:
+    """A short name: the bundled model's folder name, else the checkpoint's path, with the tier and, for a
+    built engine, the device it runs on ("nano (torch fp32 on cpu)")."""
     bundled = {path.resolve(): name for name, path in bundled_models().items()}
-    return f"{bundled.get(choice.checkpoint.resolve(), str(choice.checkpoint))} ({choice.tier})"
+    where = f" on {device_label(engine.runtime.device)}" if engine is not None else ""
+    return f"{bundled.get(choice.checkpoint.resolve(), str(choice.checkpoint))} ({choice.tier}{where})"
 
 
 def build_engine(choice: ModelChoice, views: tuple[str, ...]) -> StreamingEngine:
     """Load the checkpoint and build its engine (an ONNX tier exports its graphs on first use);
     a bad checkpoint, config or tier raises UserError."""
-    config = EngineConfig(runtime=choice.runtime, precision=choice.precision, views=views).check()
+    config = EngineConfig(runtime=choice.runtime, precision=choice.precision, device=choice.device, views=views).check()
     return StreamingEngine(load_model(choice.checkpoint, choice.config), config)

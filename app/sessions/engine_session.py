@@ -10,7 +10,8 @@ from collections import deque
 
 import numpy as np
 
-from touchanything.app.sessions.engine_choice import CPU_TIERS, ModelChoice, build_engine, bundled_models, model_label
+from touchanything.app.sessions.bundled import bundled_models
+from touchanything.app.sessions.engine_choice import CPU_TIERS, ModelChoice, build_engine, model_label, tiers_for
 from touchanything.devices.errors import UserError
 from touchanything.devices.rate_meter import RateMeter, StageMeans
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
@@ -47,7 +48,7 @@ class EngineSession:
         self.frames, self._predictions = RateMeter(), RateMeter()
         self.message = message
         self._loading = False
-        self._model = model_label(choice) if engine is not None else "no model"
+        self._model = model_label(choice, engine) if engine is not None else "no model"
         self.live = LiveEngine(engine, on_prediction=self._on_prediction) if engine is not None else None
 
     def truth_of(self, snapshot: Snapshot) -> np.ndarray | None:
@@ -119,7 +120,7 @@ class EngineSession:
             rows = self.source_rows(snapshot)
             if self.live is not None:
                 stats = self.live.stats
-                detail = "loading a model…" if self._loading else f"{stats.processed} processed"
+                detail = "loading a model…" if self._loading else f"{stats.processed} processed, {self.live.engine.runtime.capture}"
                 rows.append(SourceStatus("engine", self.live.error is None, self._predictions.rate(), None,
                                          stats.dropped, detail if self.live.error is None else f"error: {self.live.error}"))
             return SessionState(
@@ -155,7 +156,7 @@ class EngineSession:
         return names if self._bundled_name() else names + (str(self.choice.checkpoint),)
 
     def tiers(self) -> tuple[str, ...]:
-        return CPU_TIERS
+        return tiers_for(self.live.engine.runtime.device) if self.live is not None else CPU_TIERS
 
     def current_model(self) -> tuple[str, str]:
         return self._bundled_name() or str(self.choice.checkpoint), self.choice.tier
@@ -173,7 +174,7 @@ class EngineSession:
             self.message = "still loading the previous choice"
             return
         path = bundled_models().get(model)
-        choice = (ModelChoice(path) if path is not None else self.choice).with_tier(tier)
+        choice = (self.choice.with_checkpoint(path) if path is not None else self.choice).with_tier(tier)
         self._loading = True
         self.message = f"loading {model_label(choice)}…"
         threading.Thread(target=self._load, args=(choice,), name="touchanything-load", daemon=True).start()
@@ -190,5 +191,5 @@ class EngineSession:
             self.live = LiveEngine(engine, on_prediction=self._on_prediction).start()
         else:
             self.live.replace_engine(engine)
-        self.choice, self._model = choice, model_label(choice)
+        self.choice, self._model = choice, model_label(choice, engine)
         self.message = f"running {self._model}"

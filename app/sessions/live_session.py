@@ -68,7 +68,7 @@ class LiveSession(EngineSession):
         ages = snapshot.source_age_ms if snapshot is not None else {}
         for name, device in self.rig.sources.items():
             state = status.get(name, "")
-            rows.append(SourceStatus(name, state.startswith("ok"), None, ages.get(name), 0, device.status()))
+            rows.append(SourceStatus(name, state.startswith("ok"), device.rate_hz(), ages.get(name), 0, device.status()))
         clock = self.rig.clock
         if clock is not None:
             counters = clock.counters

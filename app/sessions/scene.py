@@ -4,17 +4,24 @@
     [clock]               rate_hz = 30, stale_after_ms = 200
     [cameras.<view>]      view: ego | wrist_left | wrist_right; kind = "oak" (device_id, socket) or
                           "opencv" (source = device index or video file, loop)
-    [gloves.<hand>]       hand: left | right; port (a stable /dev/serial/by-id path), baudrate
-    [hands]               source = "rokoko"; host, port, actor
-    [trackers]            rate_hz; [trackers.roles] serial = "chest" | "left_wrist" | "right_wrist"
+    [gloves.<hand>]       hand: left | right; kind = "jq" (the default); port (a stable /dev/serial/by-id
+                          path), baudrate
+    [hands]               source = "rokoko" (the default); host, port, actor
+    [trackers]            kind = "openvr" (the default); rate_hz; [trackers.roles] serial = "chest" |
+                          "left_wrist" | "right_wrist"
     [pose]                the calibration that brings mocap joints into the head-camera frame
-    [model]               checkpoint, runtime, precision (default: the bundled nano model, torch fp32)
+    [model]               checkpoint, runtime, precision, device (default: the bundled nano model, torch fp32,
+                          device auto: the first CUDA GPU when there is one, else the CPU)
     [simulator]           episode = a recorded episode the simulated rig replays through the real
                           protocols (pty gloves, Rokoko UDP to [hands]; cameras are its video files in
                           [cameras]); link_dir for the gloves' serial links
+
+Which kinds exist, and the config class of each, come from the device registry
+(`touchanything.devices.hardware.registry`), which the live rig uses to build the devices.
 """
 from __future__ import annotations
 
+import dataclasses
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,9 +30,8 @@ from typing import Any
 from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.jq_glove import JQGloveConfig
-from touchanything.devices.hardware.oak_camera import OakCameraConfig
-from touchanything.devices.hardware.opencv_camera import OpenCVCameraConfig
 from touchanything.devices.hardware.openvr_trackers import OpenVRTrackersConfig
+from touchanything.devices.hardware.registry import CameraConfig, device_kind
 from touchanything.devices.hardware.rokoko_udp import RokokoConfig
 from touchanything.devices.rig.rig_clock import RigClockConfig
 from touchanything.devices.sim.device_emulator import SimulatedRigConfig
@@ -38,7 +44,7 @@ SECTIONS = ("clock", "cameras", "gloves", "hands", "trackers", "pose", "model", 
 class Scene:
     path: Path
     clock: RigClockConfig = RigClockConfig()
-    cameras: dict[str, OakCameraConfig | OpenCVCameraConfig] = field(default_factory=dict)
+    cameras: dict[str, CameraConfig] = field(default_factory=dict)
     gloves: dict[str, JQGloveConfig] = field(default_factory=dict)
     hands: RokokoConfig | None = None
     trackers: OpenVRTrackersConfig | None = None
@@ -65,10 +71,13 @@ def read_scene(path: Path) -> Scene:
     try:
         return Scene(
             path=path, clock=_build(RigClockConfig, "clock", table.get("clock", {})),
-            cameras={view: _camera(view, s, base) for view, s in _named(table, "cameras", VIEW_NAMES).items()},
-            gloves={hand: _glove(hand, s, base) for hand, s in _named(table, "gloves", HANDS).items()},
-            hands=_hands(table["hands"]) if "hands" in table else None,
-            trackers=_trackers(table["trackers"]) if "trackers" in table else None,
+            cameras={view: _device(f"cameras.{view}", "camera", s, base)
+                     for view, s in _named(table, "cameras", VIEW_NAMES).items()},
+            gloves={hand: _device(f"gloves.{hand}", "glove", s, base, default="jq", side=hand)
+                    for hand, s in _named(table, "gloves", HANDS).items()},
+            hands=_device("hands", "hands", table["hands"], base, "source", "rokoko") if "hands" in table else None,
+            trackers=_device("trackers", "trackers", table["trackers"], base, default="openvr")
+            if "trackers" in table else None,
             pose=dict(table.get("pose", {})), model=_model(table.get("model", {}), base),
             simulator=_simulator(table["simulator"], table.get("hands", {}), base) if "simulator" in table else None)
     except UserError as exc:
@@ -77,6 +86,11 @@ def read_scene(path: Path) -> Scene:
 
 def _build(cls, section: str, settings: dict):
     """cls(**settings), naming the section and the keys when a key is unknown or missing."""
+    fields = dataclasses.fields(cls) if dataclasses.is_dataclass(cls) else ()
+    missing = [f.name for f in fields if f.name not in settings
+               and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    if missing:
+        raise UserError(f"[{section}] needs a {' and a '.join(missing)} setting")
     try:
         return cls(**settings)
     except TypeError as exc:
@@ -96,38 +110,19 @@ def _resolve(value: str, base: Path) -> str:
     return str(value if Path(value).is_absolute() else base / value)
 
 
-def _camera(view: str, settings: dict, base: Path) -> OakCameraConfig | OpenCVCameraConfig:
+def _device(section: str, role: str, settings: dict, base: Path, kind_key: str = "kind", default: str | None = None,
+            **fixed: Any) -> Any:
+    """The config of one device section: its kind looked up in the registry for `role` (the `kind_key`
+    setting, else `default`), its path settings resolved against the scene's folder, `fixed` added."""
     settings = dict(settings)
-    kind = settings.pop("kind", None)
-    if kind == "oak":
-        return _build(OakCameraConfig, f"cameras.{view}", settings)
-    if kind == "opencv":
-        if isinstance(settings.get("source"), str):
-            settings["source"] = _resolve(settings["source"], base)
-        return _build(OpenCVCameraConfig, f"cameras.{view}", settings)
-    raise UserError(f"[cameras.{view}] kind must be \"oak\" or \"opencv\", got {kind!r}")
-
-
-def _glove(hand: str, settings: dict, base: Path) -> JQGloveConfig:
-    settings = dict(settings)
-    if "port" not in settings:
-        raise UserError(f"[gloves.{hand}] needs a port")
-    settings["port"] = _resolve(settings["port"], base)
-    if "reconnect_backoff_s" in settings:
-        settings["reconnect_backoff_s"] = tuple(settings["reconnect_backoff_s"])
-    return _build(JQGloveConfig, f"gloves.{hand}", {"side": hand, **settings})
-
-
-def _hands(settings: dict) -> RokokoConfig:
-    settings = dict(settings)
-    source = settings.pop("source", "rokoko")
-    if source != "rokoko":
-        raise UserError(f"[hands] source must be \"rokoko\", got {source!r}")
-    return _build(RokokoConfig, "hands", settings)
-
-
-def _trackers(settings: dict) -> OpenVRTrackersConfig:
-    return _build(OpenVRTrackersConfig, "trackers", settings)
+    try:
+        kind = device_kind(settings.pop(kind_key, default), role, kind_key)
+    except UserError as exc:
+        raise UserError(f"[{section}] {exc}") from None
+    for key in kind.path_keys:
+        if isinstance(settings.get(key), str):
+            settings[key] = _resolve(settings[key], base)
+    return _build(kind.config, section, {**fixed, **settings})
 
 
 def _model(settings: dict, base: Path) -> ModelChoice:

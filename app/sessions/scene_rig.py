@@ -1,5 +1,6 @@
 """The live rig of a scene: its sources connected in order (a failed connect disconnects the ones already
-up), the simulated rig first when the scene has one, and the 30 Hz rig clock over them."""
+up), the simulated rig first when the scene has one, and the 30 Hz rig clock over them. Every device is
+built from its config by the device registry and follows the one device contract (ThreadedSource)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -7,11 +8,8 @@ from functools import partial
 
 from touchanything.app.sessions.scene import Scene
 from touchanything.devices.errors import UserError
-from touchanything.devices.hardware.jq_glove import JQGlove
-from touchanything.devices.hardware.oak_camera import OakCamera, OakCameraConfig
-from touchanything.devices.hardware.opencv_camera import OpenCVCamera
-from touchanything.devices.hardware.openvr_trackers import OpenVRTrackers
-from touchanything.devices.hardware.rokoko_udp import RokokoReceiver
+from touchanything.devices.hardware.registry import create_device
+from touchanything.devices.hardware.threaded_source import ThreadedSource
 from touchanything.devices.rig.pose_transform import PoseCalibration, mocap_to_model_frame
 from touchanything.devices.rig.rig_clock import RigClock
 from touchanything.devices.rig.rig_inputs import RigInput, camera_fill, glove_fill, mocap_fill, trackers_fill
@@ -21,7 +19,7 @@ from touchanything.devices.sim.device_emulator import SimulatedLiveRig
 @dataclass
 class _Source:
     name: str
-    device: object
+    device: ThreadedSource
     input: RigInput
 
 
@@ -36,18 +34,18 @@ class LiveRig:
         self._sources: list[_Source] = []
 
     @property
-    def sources(self) -> dict[str, object]:
+    def sources(self) -> dict[str, ThreadedSource]:
         return {source.name: source.device for source in self._sources}
 
     def _plan(self) -> list[_Source]:
         scene, plan = self.scene, []
         for view, config in scene.cameras.items():
-            camera = OakCamera(config) if isinstance(config, OakCameraConfig) else OpenCVCamera(config)
+            camera = create_device(config)
             plan.append(_Source(view, camera, RigInput(view, camera, camera_fill(view))))
         for hand, config in scene.gloves.items():
-            glove = JQGlove(config)
+            glove = create_device(config)
             plan.append(_Source(f"glove_{hand}", glove, RigInput(f"glove_{hand}", glove, glove_fill(hand))))
-        trackers = OpenVRTrackers(scene.trackers) if scene.trackers is not None else \
+        trackers = create_device(scene.trackers) if scene.trackers is not None else \
             (self.simulator.trackers if self.simulator is not None else None)
         if trackers is not None:
             plan.append(_Source("trackers", trackers, RigInput("trackers", trackers, trackers_fill())))
@@ -56,7 +54,7 @@ class LiveRig:
                 raise UserError(f"{scene.path}: [hands] needs a [pose] calibration to bring the mocap joints "
                                 "into the head-camera frame")
             to_model = partial(_model_frame, calibration=PoseCalibration.from_dict(scene.pose))
-            mocap = RokokoReceiver(scene.hands)
+            mocap = create_device(scene.hands)
             plan.append(_Source("mocap", mocap, RigInput("mocap", mocap, mocap_fill(to_model))))
         return plan
 
@@ -68,7 +66,7 @@ class LiveRig:
                 source.device.connect()
                 self._sources.append(source)
             self.clock = RigClock([s.input for s in self._sources], self.scene.clock)
-            self.clock.start()
+            self.clock.connect()
         except BaseException:
             self.stop()
             raise
@@ -76,7 +74,7 @@ class LiveRig:
 
     def stop(self) -> None:
         if self.clock is not None:
-            self.clock.stop()
+            self.clock.disconnect()
             self.clock = None
         while self._sources:
             self._sources.pop().device.disconnect()

@@ -6,13 +6,13 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE
 from touchanything.devices.episodes.episode_loader import find_raw_episodes
 from touchanything.devices.episodes.hdf5_convert import ConversionResult, convert_trajectory, output_path
 from touchanything.devices.errors import UserError
 
 CONVERSION_REPORT = "conversion_report.txt"
 QUALITY_REPORT = "quality_report.txt"
-SPLIT_FILE = "split.json"
 
 
 def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compression_level: int = 4,

@@ -15,6 +15,8 @@ from touchanything.devices.episodes.hdf5_episode import WILOR_VALID_KEYS
 from touchanything.devices.errors import DataError, UserError
 
 SPLIT_KEYS = ("train", "val", "test_seen", "test_unseen")
+SPLIT_FILE = "split.json"
+"""The split's file name in a dataset root (raw or HDF5)."""
 
 
 def read_split(path: Path) -> dict[str, list[Path]]:

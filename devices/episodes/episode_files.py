@@ -106,10 +106,6 @@ def read_masks(path: Path) -> Masks:
     return Masks(masks.astype(np.uint8), obj_ids.astype(np.int32), valid.astype(bool))
 
 
-def write_masks(path: Path, masks: Masks) -> None:
-    save_npz(path, {"masks": masks.masks, "obj_ids": masks.obj_ids, "valid_frames": masks.valid_frames})
-
-
 def read_quality(path: Path) -> dict[str, float]:
     """`quality_issues.json` → {"left": ratio, "right": ratio} of duplicate wrist frames (−1 if unknown)."""
     try:
@@ -125,11 +121,6 @@ def read_quality(path: Path) -> dict[str, float]:
         except (TypeError, KeyError, ValueError):
             ratios[side] = -1.0
     return ratios
-
-
-def write_quality(path: Path, duplicate_ratio: dict[str, float]) -> None:
-    data = {"duplicate_frames": {side: {"ratio": float(r)} for side, r in duplicate_ratio.items()}}
-    Path(path).write_text(json.dumps(data, indent=1))
 
 
 def read_camera_matrices(path: Path) -> dict[str, np.ndarray]:

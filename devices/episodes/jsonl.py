@@ -5,7 +5,6 @@ A broken line never shifts later frames: it becomes an empty row and a problem n
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable
 from pathlib import Path
 
 from touchanything.devices.errors import DataError, describe
@@ -44,12 +43,6 @@ def read_jsonl(path: Path) -> tuple[list[dict | None], list[str]]:
 def json_line(row: dict) -> str:
     """One compact JSON line, newline included."""
     return json.dumps(row, separators=(",", ":")) + "\n"
-
-
-def write_jsonl(path: Path, rows: Iterable[dict]) -> None:
-    """Write rows as compact JSON lines."""
-    with open(path, "w") as handle:
-        handle.writelines(json_line(row) for row in rows)
 
 
 class FieldProblems:

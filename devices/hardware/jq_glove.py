@@ -1,17 +1,16 @@
-"""A Juqiao (JQ) pressure glove on a serial port: one reader thread, a latest-value slot, side check and
-reconnection with back-off when the glove is unplugged.
+"""A Juqiao (JQ) pressure glove on a serial port, as a ThreadedSource: one reader thread, a latest-value slot,
+side check and reconnection with back-off when the glove is unplugged.
 
 The port may be a stable symlink (`/dev/serial/by-id/...`); it is resolved again on every reconnect, so a
-replugged glove that comes back as another `/dev/ttyACM*` is found.
+replugged glove that comes back as another `/dev/ttyACM*` is found. While the port is away the source
+stays connected (`is_connected`), retries with back-off and says so in its status.
 """
 from __future__ import annotations
 
 import errno
 import math
 import os
-import threading
-import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -19,12 +18,13 @@ import serial
 
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.jq_protocol import SIDE_SENSORS, JQParserCounters, JQSample, JQStreamParser
-from touchanything.devices.worker_thread import start_worker, stop_worker
+from touchanything.devices.hardware.threaded_source import SourceCounters, ThreadedSource, now_us
 
 SERIAL_BY_ID = Path("/dev/serial/by-id")
-RATE_WINDOW_US = 1_000_000
 OTHER_SIDE_GRACE_US = 1_000_000
 """The swap-ports message shows while the other hand arrived in the last second and this one did not."""
+SERIAL_ERRORS = (serial.SerialException, OSError, ValueError)
+"""What opening or reading a port raises when it is absent, unplugged or not a serial device."""
 
 
 @dataclass(frozen=True)
@@ -33,7 +33,7 @@ class JQGloveConfig:
 
     read_timeout_s: longest a read blocks (bounds how fast `disconnect` returns).
     reconnect_backoff_s: (first wait, longest wait) between attempts to reopen a lost port; the wait
-    doubles after every failed attempt.
+    doubles after every failed attempt. Any two-item sequence is accepted (TOML gives a list).
     """
 
     port: str
@@ -49,8 +49,9 @@ class JQGloveConfig:
             raise UserError(f"glove baud rate must be positive, got {self.baudrate}")
         if not (self.read_timeout_s > 0 and math.isfinite(self.read_timeout_s)):
             raise UserError(f"glove read timeout must be a positive number of seconds, got {self.read_timeout_s}")
-        first, longest = self.reconnect_backoff_s
-        if not (0 < first <= longest and math.isfinite(longest)):
+        backoff = tuple(self.reconnect_backoff_s)
+        object.__setattr__(self, "reconnect_backoff_s", backoff)
+        if not (len(backoff) == 2 and 0 < backoff[0] <= backoff[1] and math.isfinite(backoff[1])):
             raise UserError("glove reconnect back-off must be (first, longest) seconds with 0 < first <= longest, "
                             f"got {self.reconnect_backoff_s}")
 
@@ -66,189 +67,153 @@ class GloveReading:
     t_us: int
 
 
-@dataclass(frozen=True)
-class JQGloveCounters:
-    """Totals since `connect`: samples published, samples of the other hand (not published), reopenings
-    of a lost port, and the parser's own counters."""
+@dataclass
+class JQGloveCounters(SourceCounters):
+    """Totals since `connect`: samples of this side (published), samples of the other hand (not published),
+    reopenings of a lost port, and the parser's own counters (a copy)."""
 
-    samples: int
-    other_side_samples: int
-    reconnects: int
-    parser: JQParserCounters
+    other_side_samples: int = 0
+    reconnects: int = 0
+    parser: JQParserCounters = field(default_factory=JQParserCounters)
 
 
-def serial_devices_hint() -> str:
+def serial_devices_hint(by_id: Path = SERIAL_BY_ID) -> str:
     """One phrase listing what is plugged in under /dev/serial/by-id."""
-    names = sorted(p.name for p in SERIAL_BY_ID.iterdir()) if SERIAL_BY_ID.is_dir() else []
+    names = sorted(p.name for p in by_id.iterdir()) if by_id.is_dir() else []
     if not names:
-        return f"there is nothing under {SERIAL_BY_ID} (is the glove plugged in?)"
-    return f"under {SERIAL_BY_ID} there is: {', '.join(names)}"
+        return f"there is nothing under {by_id} (is the glove plugged in?)"
+    return f"under {by_id} there is: {', '.join(names)}"
 
 
-def open_port(config: JQGloveConfig) -> tuple[serial.Serial, str]:
-    """Resolve the port's symlinks and open it; raises serial.SerialException (or OSError) on failure."""
-    path = os.path.realpath(config.port)
-    return serial.Serial(path, config.baudrate, timeout=config.read_timeout_s), path
+def open_port(port: str, baudrate: int, timeout_s: float) -> tuple[serial.Serial, str]:
+    """Resolve the port's symlinks and open it; raises one of SERIAL_ERRORS on failure."""
+    path = os.path.realpath(port)
+    return serial.Serial(path, baudrate, timeout=timeout_s), path
 
 
-class JQGlove:
-    """One glove on one port. `connect()` opens the port and starts the reader; `latest()` is the newest
-    sample of this side (kept across an unplug: judge it by `t_us`); `status()` is one dashboard line."""
+def open_failure(port: str, exc: BaseException) -> str:
+    """Why a port could not be opened, as one phrase with a hint when the user can fix it."""
+    hint = "; add your user to the dialout group" if getattr(exc, "errno", None) == errno.EACCES else ""
+    return f"{exc}{hint}"
+
+
+class JQGlove(ThreadedSource[GloveReading]):
+    """One glove on one port. `latest()` is the newest sample of this side (kept across an unplug: judge it
+    by `t_us`); `status()` is one dashboard line (connected, retrying, or the wrong glove on this port)."""
+
+    RATE_WINDOW = 100
 
     def __init__(self, config: JQGloveConfig) -> None:
+        super().__init__(f"{config.side} glove on {config.port}")
         self.config = config
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._reset_state()
-
-    def _reset_state(self) -> None:
         self._parser = JQStreamParser()
-        self._latest: GloveReading | None = None
-        self._samples = self._other_side = self._reconnects = 0
-        self._parser_counters = JQParserCounters()
-        self._last_other_side_us: int | None = None
-        self._window_start_us: int | None = None
-        self._window_samples = 0
-        self._rate_hz = 0.0
+        self._port: serial.Serial | None = None
         self._path = ""
         self._down_reason: str | None = None
-        self._retry_s = self.config.reconnect_backoff_s[0]
+        self._retry_s = config.reconnect_backoff_s[0]
+        self._last_other_side_us: int | None = None
 
-    @property
-    def is_connected(self) -> bool:
-        """True between connect and disconnect (also while an unplugged port is being retried)."""
-        return self._thread is not None
-
-    def connect(self) -> None:
-        """Open the port and start the reader thread; UserError if the port is absent or cannot be opened."""
-        if self._thread is not None:
-            raise RuntimeError(f"glove on {self.config.port} is already connected")
-        if not os.path.exists(self.config.port):
-            raise UserError(f"glove port {self.config.port} does not exist; {serial_devices_hint()}")
-        try:
-            port, path = open_port(self.config)
-        except (serial.SerialException, OSError, ValueError) as exc:
-            hint = "; add your user to the dialout group" if getattr(exc, "errno", None) == errno.EACCES else ""
-            raise UserError(f"cannot open glove port {self.config.port}: {exc}{hint}") from None
-        self._reset_state()
-        self._path = path
-        self._stop.clear()
-        self._thread = start_worker(lambda: self._read_loop(port), f"jq-glove-{self.config.side}", port.close)
-
-    def disconnect(self) -> None:
-        """Stop the reader (returns within about one read timeout) and close the port."""
-        stop_worker(self._thread, self._stop)
-        self._thread = None
-
-    def __enter__(self) -> JQGlove:
-        self.connect()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.disconnect()
-
-    def latest(self) -> GloveReading | None:
-        """The newest sample of this side, or None before the first one."""
-        with self._lock:
-            return self._latest
+    def _new_counters(self) -> JQGloveCounters:
+        return JQGloveCounters()
 
     @property
     def counters(self) -> JQGloveCounters:
-        """A consistent copy of the counters."""
-        with self._lock:
-            return JQGloveCounters(self._samples, self._other_side, self._reconnects, self._parser_counters)
+        return super().counters  # type: ignore[return-value]
 
-    def status(self) -> str:
-        """One line: connected (rate, age, resyncs), waiting, wrong glove on this port, or disconnected."""
-        port, now_us = self.config.port, time.monotonic_ns() // 1000
-        with self._lock:
-            latest, reason, path = self._latest, self._down_reason, self._path
-            other_us, rate, reconnects = self._last_other_side_us, self._rate_hz, self._reconnects
-            resyncs = self._parser_counters.resyncs
-        if self._thread is None:
-            return "not connected"
-        if reason is not None:
-            return (f"disconnected: {port} ({reason}); retrying every ≤ {self.config.reconnect_backoff_s[1]:g} s, "
-                    f"{reconnects} reconnects")
-        own_stale = latest is None or now_us - latest.t_us > OTHER_SIDE_GRACE_US
-        if other_us is not None and now_us - other_us < OTHER_SIDE_GRACE_US and own_stale:
-            other = next(side for side in SIDE_SENSORS if side != self.config.side)
-            return f"port {port} carries the {other} glove; swap ports in the scene file"
-        where = path if path == port else f"{port} → {path}"
-        if latest is None:
-            return f"connected {where}, no sample yet"
-        rate_text = f"{rate:.0f} Hz" if rate else "measuring rate"
-        return (f"connected {where}, {rate_text}, age {(now_us - latest.t_us) // 1000} ms, "
-                f"{resyncs} resyncs, {reconnects} reconnects")
-
-    def _read_loop(self, port: serial.Serial | None) -> None:
-        """Reader thread: read what is waiting (at least one byte, up to the read timeout), parse, publish."""
+    def _open(self) -> None:
+        """Open the port; UserError when it is absent or cannot be opened."""
+        port = self.config.port
+        if not os.path.exists(port):
+            raise UserError(f"glove port {port} does not exist; {serial_devices_hint()}")
         try:
-            while not self._stop.is_set():
-                if port is None:
-                    port = self._reopen()
-                    continue
-                try:
-                    data = port.read(port.in_waiting or 1)
-                except (serial.SerialException, OSError) as exc:
-                    port.close()
-                    port = None
-                    self._lost(exc)
-                    continue
-                t_us = time.monotonic_ns() // 1000
-                if data:
-                    self._publish(self._parser.feed(data), t_us)
-        finally:
-            if port is not None:
-                port.close()
+            self._port, self._path = open_port(port, self.config.baudrate, self.config.read_timeout_s)
+        except SERIAL_ERRORS as exc:
+            raise UserError(f"cannot open glove port {port}: {open_failure(port, exc)}") from None
+        self._parser = JQStreamParser()
+        self._down_reason, self._last_other_side_us = None, None
+        self._retry_s = self.config.reconnect_backoff_s[0]
+
+    def _step(self) -> None:
+        """Read what is waiting (at least one byte, up to the read timeout), parse, publish; reopen a lost port."""
+        if self._port is None:
+            self._reopen()
+            return
+        try:
+            data = self._port.read(self._port.in_waiting or 1)
+        except SERIAL_ERRORS as exc:
+            self._lost(exc)
+            return
+        if data:
+            self._take(self._parser.feed(data), now_us())
+
+    def _close(self) -> None:
+        if self._port is not None:
+            self._port.close()
+        self._port = None
 
     def _failure(self, exc: Exception) -> str:
         return "port not present" if not os.path.exists(self.config.port) else str(exc) or type(exc).__name__
 
     def _lost(self, exc: Exception) -> None:
-        reason = self._failure(exc)
+        """The port failed (unplugged): close it and retry from the shortest back-off."""
+        self._close()
         with self._lock:
-            self._down_reason, self._retry_s = reason, self.config.reconnect_backoff_s[0]
-            self._window_start_us, self._window_samples, self._rate_hz = None, 0, 0.0
+            self._down_reason, self._retry_s = self._failure(exc), self.config.reconnect_backoff_s[0]
+        self._slot.restart_rate()
 
-    def _reopen(self) -> serial.Serial | None:
+    def _reopen(self) -> None:
         """Wait the back-off, then try the port again (its symlink resolved anew)."""
         if self._stop.wait(self._retry_s):
-            return None
+            return
         try:
-            port, path = open_port(self.config)
-        except (serial.SerialException, OSError, ValueError) as exc:
+            port, path = open_port(self.config.port, self.config.baudrate, self.config.read_timeout_s)
+        except SERIAL_ERRORS as exc:
             reason = self._failure(exc)
             with self._lock:
                 self._down_reason = reason
                 self._retry_s = min(2 * self._retry_s, self.config.reconnect_backoff_s[1])
-            return None
-        self._parser.reset()
-        with self._lock:
-            self._path, self._down_reason, self._reconnects = path, None, self._reconnects + 1
-        return port
-
-    def _publish(self, samples: list[JQSample], t_us: int) -> None:
-        own = [s for s in samples if s.side == self.config.side]
-        with self._lock:
-            self._parser_counters = replace(self._parser.counters)
-            if len(own) < len(samples):
-                self._other_side += len(samples) - len(own)
-                self._last_other_side_us = t_us
-            if own:
-                newest = own[-1]
-                self._latest = GloveReading(newest.side, newest.raw, newest.quat_wxyz, t_us)
-                self._samples += len(own)
-                self._count_rate(len(own), t_us)
-
-    def _count_rate(self, samples: int, t_us: int) -> None:
-        """Samples per second over windows of at least one second (call with the lock held)."""
-        if self._window_start_us is None:
-            self._window_start_us = t_us
             return
-        self._window_samples += samples
-        elapsed = t_us - self._window_start_us
-        if elapsed >= RATE_WINDOW_US:
-            self._rate_hz = self._window_samples * 1e6 / elapsed
-            self._window_start_us, self._window_samples = t_us, 0
+        self._parser.reset()
+        self._port = port
+        with self._lock:
+            self._path, self._down_reason = path, None
+            self._counters.reconnects += 1
+
+    def _take(self, samples: list[JQSample], t_us: int) -> None:
+        """Publish the newest sample of this side; count the other side's."""
+        own = [s for s in samples if s.side == self.config.side]
+        other = len(samples) - len(own)
+        if other:
+            self._last_other_side_us = t_us
+        with self._lock:
+            self._counters.parser = replace(self._parser.counters)
+        if own:
+            newest = own[-1]
+            reading = GloveReading(newest.side, newest.raw, newest.quat_wxyz, t_us)
+            self._publish(reading, t_us, samples=len(own), other_side_samples=other)
+        elif other:
+            self._count(other_side_samples=other)
+
+    def status(self) -> str:
+        """One line: connected (rate, age, resyncs), retrying a lost port, wrong glove on this port, or
+        disconnected."""
+        if not self.is_connected:
+            return "disconnected"
+        port, counters = self.config.port, self.counters
+        with self._lock:
+            reason, path = self._down_reason, self._path
+        if reason is not None:
+            return (f"disconnected: {port} ({reason}); retrying every ≤ {self.config.reconnect_backoff_s[1]:g} s, "
+                    f"{counters.reconnects} reconnects")
+        age_ms, other_us = self.age_ms(), self._last_other_side_us
+        own_stale = age_ms is None or age_ms * 1000 > OTHER_SIDE_GRACE_US
+        if other_us is not None and now_us() - other_us < OTHER_SIDE_GRACE_US and own_stale:
+            other = next(side for side in SIDE_SENSORS if side != self.config.side)
+            return f"port {port} carries the {other} glove; swap ports in the scene file"
+        where = path if path == port else f"{port} → {path}"
+        if age_ms is None:
+            return f"connected {where}, no sample yet"
+        rate = self.rate_hz()
+        rate_text = f"{rate:.0f} Hz" if rate else "measuring rate"
+        return (f"connected {where}, {rate_text}, age {age_ms:.0f} ms, {counters.parser.resyncs} resyncs, "
+                f"{counters.reconnects} reconnects{self._error_suffix()}")

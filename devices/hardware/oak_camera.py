@@ -4,6 +4,10 @@
 host monotonic capture time, sequence number); `OakCamera` opens a device and builds the camera pipeline
 that feeds it. The split lets a host-only pipeline (ReplayVideo) drive the very same frame path.
 
+Negotiated format: the first frame says what the device delivers (`ImgFrame.getWidth/getHeight/getFps`);
+it becomes `negotiated`, and the status says so when it differs from the scene's request (frames are
+delivered as they come, not resized).
+
 Timestamps: `ImgFrame.getTimestamp()` is the capture time already synchronised to the host clock that
 `dai.Clock.now()` reads, std::chrono::steady_clock (CLOCK_MONOTONIC on Linux, the clock behind
 Python's time.monotonic, so the offset measured at connect is ~0 µs there). The offset is measured
@@ -18,11 +22,13 @@ from dataclasses import dataclass
 from datetime import timedelta
 
 import cv2
-import depthai as dai
+
+os.environ.setdefault("DEPTHAI_LEVEL", "error")  # else importing depthai logs "USB protocol not available"
+import depthai as dai  # noqa: E402
 import numpy as np
 
 from touchanything.devices.errors import UserError
-from touchanything.devices.hardware.camera_source import CameraSource
+from touchanything.devices.hardware.camera_source import CameraFormat, CameraSource
 from touchanything.devices.hardware.threaded_source import SourceEnded, now_us
 
 SEARCH_TIMEOUT_MS = "2000"
@@ -75,12 +81,19 @@ def frame_rgb(frame: dai.ImgFrame) -> np.ndarray:
     return cv2.cvtColor(image, cv2.COLOR_GRAY2RGB if image.ndim == 2 else cv2.COLOR_BGR2RGB)
 
 
+def frame_format(frame: dai.ImgFrame) -> CameraFormat:
+    """The size and rate an ImgFrame reports (rate None when it reports none)."""
+    fps = frame.getFps()
+    return CameraFormat(frame.getWidth(), frame.getHeight(), fps if math.isfinite(fps) and fps > 0 else None)
+
+
 class DepthaiFrameSource(CameraSource):
     """The frames of one depthai output queue as a CameraSource. `build` creates the pipeline (not yet
-    started) and the queue; connect starts the pipeline, disconnect stops it."""
+    started) and the queue; connect starts the pipeline, disconnect stops it. `requested`: the format
+    asked of the pipeline, compared with the first frame's."""
 
-    def __init__(self, name: str, build: PipelineBuilder) -> None:
-        super().__init__(name)
+    def __init__(self, name: str, build: PipelineBuilder, requested: CameraFormat | None = None) -> None:
+        super().__init__(name, requested)
         self._build = build
         self._pipeline: dai.Pipeline | None = None
         self._queue: dai.MessageQueue | None = None
@@ -97,6 +110,8 @@ class DepthaiFrameSource(CameraSource):
         except dai.MessageQueue.QueueException:
             raise SourceEnded("the depthai pipeline stopped") from None
         if frame is not None:
+            if self._negotiated is None:
+                self._negotiated = frame_format(frame)
             t_us = frame.getTimestamp() // ONE_US + self._offset_us
             self._publish_frame(frame_rgb(frame), t_us, frame.getSequenceNum())
 
@@ -111,7 +126,8 @@ class OakCamera(DepthaiFrameSource):
     """One OAK camera socket at the configured size and rate, RGB."""
 
     def __init__(self, config: OakCameraConfig = OakCameraConfig()) -> None:
-        super().__init__(f"OAK {config.device_id or 'camera'} {config.socket}", self._build_camera)
+        super().__init__(f"OAK {config.device_id or 'camera'} {config.socket}", self._build_camera,
+                         CameraFormat(config.width, config.height, config.fps))
         self.config = config
         self._device: dai.Device | None = None
 

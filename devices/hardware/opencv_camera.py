@@ -6,7 +6,9 @@ falls behind skips the overdue frames (counted as dropped) instead of building u
 the file starts over when it ends and the sequence numbers keep increasing.
 
 Frames come out as (height, width, 3) uint8 RGB at the configured size; a source that delivers another
-size is resized (INTER_AREA). A live frame's `t_us` is the host time when OpenCV handed it over.
+size is resized (INTER_AREA). What the device (or file) actually gives is read back after opening
+(CAP_PROP_FRAME_WIDTH / HEIGHT / FPS) as `negotiated`, and the status says so when it differs from the
+request. A live frame's `t_us` is the host time when OpenCV handed it over.
 """
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ import cv2
 import numpy as np
 
 from touchanything.devices.errors import UserError
-from touchanything.devices.hardware.camera_source import CameraSource
+from touchanything.devices.hardware.camera_source import CameraFormat, CameraSource
 from touchanything.devices.hardware.threaded_source import SourceEnded, now_us
 
 MAX_CATCH_UP_S = 1.0
@@ -47,6 +49,27 @@ class OpenCVCameraConfig:
     def is_file(self) -> bool:
         return isinstance(self.source, str) and not self.source.startswith("/dev/")
 
+    @property
+    def format(self) -> CameraFormat:
+        """The size and rate asked for."""
+        return CameraFormat(self.width, self.height, self.fps)
+
+
+def negotiated_format(capture: cv2.VideoCapture) -> CameraFormat:
+    """What an opened capture delivers, read back from OpenCV: size, and fps (None when it reports none)."""
+    fps = capture.get(cv2.CAP_PROP_FPS)
+    return CameraFormat(round(capture.get(cv2.CAP_PROP_FRAME_WIDTH)), round(capture.get(cv2.CAP_PROP_FRAME_HEIGHT)),
+                        fps if math.isfinite(fps) and fps > 0 else None)
+
+
+def request_format(capture: cv2.VideoCapture, wanted: CameraFormat) -> CameraFormat:
+    """Ask an opened camera for `wanted` and return what it negotiated (drivers pick the nearest they have)."""
+    capture.set(cv2.CAP_PROP_FRAME_WIDTH, wanted.width)
+    capture.set(cv2.CAP_PROP_FRAME_HEIGHT, wanted.height)
+    if wanted.fps:
+        capture.set(cv2.CAP_PROP_FPS, wanted.fps)
+    return negotiated_format(capture)
+
 
 def fit_rgb(bgr: np.ndarray, width: int, height: int) -> np.ndarray:
     """OpenCV's (h, w, 3) BGR frame as (height, width, 3) uint8 RGB."""
@@ -56,10 +79,10 @@ def fit_rgb(bgr: np.ndarray, width: int, height: int) -> np.ndarray:
 
 
 class OpenCVCamera(CameraSource):
-    """A UVC camera or a video file paced like one."""
+    """A UVC camera or a video file paced like one. `negotiated` is what the device (or file) gives."""
 
     def __init__(self, config: OpenCVCameraConfig) -> None:
-        super().__init__(f"OpenCV camera {config.source}")
+        super().__init__(f"OpenCV camera {config.source}", config.format, resizes=True)
         self.config = config
         self._capture: cv2.VideoCapture | None = None
         self._period_s = 1.0 / config.fps
@@ -81,8 +104,8 @@ class OpenCVCamera(CameraSource):
         self._capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
         if not self._capture.isOpened():
             raise UserError(f"video file {path} cannot be read (not a video OpenCV can decode)")
-        fps = self._capture.get(cv2.CAP_PROP_FPS)
-        self._period_s = 1.0 / (fps if math.isfinite(fps) and fps > 0 else self.config.fps)
+        self._negotiated = negotiated_format(self._capture)
+        self._period_s = 1.0 / (self._negotiated.fps or self.config.fps)
 
     def _open_camera(self) -> None:
         source = self.config.source
@@ -90,9 +113,7 @@ class OpenCVCamera(CameraSource):
         if not self._capture.isOpened():
             raise UserError(f"no camera at {source!r} (OpenCV cannot open it); check that it is plugged in "
                             f"and not used by another program")
-        self._capture.set(cv2.CAP_PROP_FRAME_WIDTH, self.config.width)
-        self._capture.set(cv2.CAP_PROP_FRAME_HEIGHT, self.config.height)
-        self._capture.set(cv2.CAP_PROP_FPS, self.config.fps)
+        self._negotiated = request_format(self._capture, self.config.format)
 
     def _step(self) -> None:
         if self.config.is_file:
@@ -101,6 +122,8 @@ class OpenCVCamera(CameraSource):
         ok, bgr = self._capture.read()
         if not ok:
             raise OSError(f"camera {self.config.source!r} delivered no frame")
+        if self._next == 0:  # the first frame is the truth where a backend reads back no size
+            self._negotiated = CameraFormat(bgr.shape[1], bgr.shape[0], self._negotiated.fps)
         self._publish_frame(fit_rgb(bgr, self.config.width, self.config.height), now_us(), self._next)
         self._next += 1
 

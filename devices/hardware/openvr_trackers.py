@@ -159,9 +159,7 @@ class OpenVRTrackers(ThreadedSource[TrackerReading]):
         trackers = {index: serial for index, serial in self._serials.items() if serial is not None}
         by_role, unknown = poses_by_role(poses, trackers, self.config.roles)
         self._unknown = self._unknown | unknown
-        with self._lock:
-            self._counters.missing += len(self.config.roles) - len(by_role)
-        self._publish(TrackerReading(by_role, t_us), t_us)
+        self._publish(TrackerReading(by_role, t_us), t_us, missing=len(self.config.roles) - len(by_role))
 
     def _tracker_serial(self, index: int) -> str | None:
         """The serial number of device `index` when it is a generic tracker, else None."""
@@ -170,10 +168,10 @@ class OpenVRTrackers(ThreadedSource[TrackerReading]):
             return None
         return self._system.getStringTrackedDeviceProperty(index, openvr.Prop_SerialNumber_String)
 
-    def status(self) -> str:
-        """The base status, plus the serials of trackers seen that have no role."""
+    def _status_details(self) -> str:
+        """The serials of trackers seen that have no role."""
         unknown = sorted(self._unknown)
-        return super().status() + (f", trackers without a role: {', '.join(unknown)}" if unknown else "")
+        return f", trackers without a role: {', '.join(unknown)}" if unknown else ""
 
     def _close(self) -> None:
         if self._system is not None:

@@ -1,4 +1,5 @@
-"""Rokoko Studio hand mocap over UDP: a reader thread keeps the latest decoded hands of one actor.
+"""Rokoko Studio hand mocap over UDP, as a ThreadedSource: a reader thread keeps the latest decoded hands
+of one actor.
 
 Studio sends one datagram per frame (Livestreaming → Custom streaming, JSON v3, default port 14043).
 Every datagram is counted; oversized and malformed ones are dropped and counted, never raised. A datagram
@@ -6,17 +7,13 @@ with no hand present still replaces the latest reading (the hands are gone) and 
 """
 from __future__ import annotations
 
-import dataclasses
 import socket
-import threading
-import time
-from collections import deque
 from dataclasses import dataclass
 
-from touchanything.devices.errors import UserError
+from touchanything.devices.errors import DeviceNotConnectedError, UserError
 from touchanything.devices.hardware.rokoko_protocol import RokokoFrame, RokokoProtocolError, decode_datagram
+from touchanything.devices.hardware.threaded_source import SourceCounters, ThreadedSource, now_us
 from touchanything.devices.snapshot import HANDS
-from touchanything.devices.worker_thread import start_worker, stop_worker
 
 UDP_MAX_PAYLOAD = 65507
 """The largest UDP payload over IPv4."""
@@ -45,19 +42,18 @@ class RokokoConfig:
 
 @dataclass(frozen=True)
 class RokokoReading:
-    """A decoded frame and its host capture time `t_us` (time.monotonic_ns() // 1000 at reception)."""
+    """A decoded frame and its host capture time `t_us` (`now_us()` at reception)."""
 
     frame: RokokoFrame
     t_us: int
 
 
 @dataclass
-class RokokoCounters:
-    """datagrams: all received; decoded: usable (no_hand of them without any hand present); malformed and
-    oversized: dropped."""
+class RokokoCounters(SourceCounters):
+    """datagrams: all received; samples: usable, published (no_hand of them without any
+    hand present); malformed and oversized: dropped."""
 
     datagrams: int = 0
-    decoded: int = 0
     malformed: int = 0
     oversized: int = 0
     no_hand: int = 0
@@ -93,107 +89,54 @@ def bind_socket(config: RokokoConfig) -> socket.socket:
     return sock
 
 
-class RokokoReceiver:
-    """Listens for Rokoko Studio datagrams. Use as a context manager, or `connect()` / `disconnect()`."""
+class RokokoReceiver(ThreadedSource[RokokoReading]):
+    """Listens for Rokoko Studio datagrams (the ThreadedSource contract); `bound_address` says where."""
+
+    RATE_WINDOW = RATE_WINDOW
 
     def __init__(self, config: RokokoConfig = RokokoConfig()) -> None:
+        super().__init__("Rokoko receiver")
         self.config = config
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
         self._socket: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._latest: RokokoReading | None = None
-        self._counters = RokokoCounters()
-        self._arrivals: deque[int] = deque(maxlen=RATE_WINDOW)
+        self._buffer = bytearray()
         self._last_problem = ""
 
-    @property
-    def is_connected(self) -> bool:
-        return self._thread is not None
-
-    @property
-    def bound_address(self) -> tuple[str, int]:
-        """The (host, port) actually listened on (the chosen port when port 0 was requested)."""
-        if self._socket is None:
-            raise RuntimeError("the Rokoko receiver is not connected")
-        host, port = self._socket.getsockname()[:2]
-        return host, port
-
-    def connect(self) -> None:
-        """Bind the socket and start the reader thread; UserError for a bad option or a busy/bad address."""
-        if self.is_connected:
-            raise RuntimeError("the Rokoko receiver is already connected")
-        check_config(self.config)
-        self._socket = bind_socket(self.config)
-        self._stop.clear()
-        self._thread = start_worker(self._run, "rokoko-udp", self._close_socket)
-
-    def disconnect(self) -> None:
-        """Stop and join the reader thread, close the socket; does nothing when not connected."""
-        if self._thread is None:
-            return
-        stop_worker(self._thread, self._stop)
-        self._thread = None
-        self._close_socket()
-
-    def __enter__(self) -> RokokoReceiver:
-        self.connect()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.disconnect()
-
-    def latest(self) -> RokokoReading | None:
-        """The newest decoded reading, or None before the first one."""
-        with self._lock:
-            return self._latest
+    def _new_counters(self) -> RokokoCounters:
+        return RokokoCounters()
 
     @property
     def counters(self) -> RokokoCounters:
-        """A consistent copy of the counters."""
-        with self._lock:
-            return dataclasses.replace(self._counters)
+        return super().counters  # type: ignore[return-value]
 
-    def rate_hz(self) -> float:
-        """Decoded datagrams per second over the last few (0 before two have arrived)."""
-        with self._lock:
-            if len(self._arrivals) < 2 or self._arrivals[-1] == self._arrivals[0]:
-                return 0.0
-            return (len(self._arrivals) - 1) * 1e6 / (self._arrivals[-1] - self._arrivals[0])
+    @property
+    def bound_address(self) -> tuple[str, int]:
+        """The (host, port) actually listened on (the chosen port when port 0 was requested);
+        DeviceNotConnectedError when not connected."""
+        sock = self._socket
+        if sock is None:
+            raise DeviceNotConnectedError(f"{self.name} is not connected; connect it to bind its UDP port")
+        host, port = sock.getsockname()[:2]
+        return host, port
 
-    def status(self) -> str:
-        """One short line for a dashboard, e.g. "connected, 30 Hz, age 12 ms, hands left+right, 0 dropped"."""
-        if not self.is_connected:
-            return "disconnected"
-        reading, counters, problem = self.latest(), self.counters, self._last_problem
-        dropped = counters.malformed + counters.oversized
-        tail = f"{dropped} dropped" + (f", last problem: {problem}" if problem else "")
-        if reading is None:
-            host, port = self.bound_address
-            return f"listening on {host}:{port}, no data yet, {tail}"
-        age_ms = (time.monotonic_ns() // 1000 - reading.t_us) / 1000
-        hands = "+".join(h for h, p in zip(HANDS, reading.frame.hands_present) if p) or "none"
-        return f"connected, {self.rate_hz():.0f} Hz, age {age_ms:.0f} ms, hands {hands}, {tail}"
+    def _open(self) -> None:
+        """Check the options and bind the socket; UserError for a bad option or a busy/bad address."""
+        check_config(self.config)
+        self._buffer = bytearray(max(MIN_RECEIVE_BUFFER, self.config.max_datagram_bytes + 1))
+        self._last_problem = ""
+        self._socket = bind_socket(self.config)
 
-    def _close_socket(self) -> None:
+    def _step(self) -> None:
+        """Wait up to `poll_s` for one datagram and handle it (a receive error is counted by the base)."""
+        try:
+            size = self._socket.recv_into(self._buffer)
+        except TimeoutError:
+            return
+        self._handle(bytes(memoryview(self._buffer)[:size]), now_us())
+
+    def _close(self) -> None:
         if self._socket is not None:
             self._socket.close()
-            self._socket = None
-
-    def _run(self) -> None:
-        sock = self._socket
-        buffer = bytearray(max(MIN_RECEIVE_BUFFER, self.config.max_datagram_bytes + 1))
-        view = memoryview(buffer)
-        while not self._stop.is_set():
-            try:
-                size = sock.recv_into(buffer)
-            except TimeoutError:
-                continue
-            except OSError as exc:
-                self._last_problem = f"receive error: {exc.strerror or exc}"
-                self._stop.wait(self.config.poll_s)
-                continue
-            self._handle(bytes(view[:size]), time.monotonic_ns() // 1000)
+        self._socket = None
 
     def _handle(self, data: bytes, t_us: int) -> None:
         """Count one datagram and keep it as the latest reading when it decodes."""
@@ -204,15 +147,22 @@ class RokokoReceiver:
                 frame = decode_datagram(data, self.config.actor)
             except RokokoProtocolError as exc:
                 problem = exc.reason
-        with self._lock:
-            counters = self._counters
-            counters.datagrams += 1
-            if frame is None:
-                counters.oversized += oversized
-                counters.malformed += not oversized
-                self._last_problem = problem
-                return
-            counters.decoded += 1
-            counters.no_hand += not frame.hands_present.any()
-            self._latest = RokokoReading(frame, t_us)
-            self._arrivals.append(t_us)
+        if frame is None:
+            self._last_problem = problem
+            self._count(datagrams=1, oversized=int(oversized), malformed=int(not oversized))
+            return
+        no_hand = int(not frame.hands_present.any())
+        self._publish(RokokoReading(frame, t_us), t_us, datagrams=1, no_hand=no_hand)
+
+    def status(self) -> str:
+        """One short line for a dashboard, e.g. "connected, 30 Hz, age 12 ms, hands left+right, 0 dropped"."""
+        if not self.is_connected:
+            return "disconnected"
+        (reading, _), counters, problem = self._slot.peek(), self.counters, self._last_problem
+        dropped = counters.malformed + counters.oversized
+        tail = f"{dropped} dropped" + (f", last problem: {problem}" if problem else "") + self._error_suffix()
+        if reading is None:
+            host, port = self.bound_address
+            return f"listening on {host}:{port}, no data yet, {tail}"
+        hands = "+".join(h for h, p in zip(HANDS, reading.frame.hands_present) if p) or "none"
+        return f"connected, {self.rate_hz():.0f} Hz, age {self.age_ms():.0f} ms, hands {hands}, {tail}"

@@ -1,9 +1,23 @@
-"""Live sources read by one thread each: the connect/disconnect lifecycle, the latest-value slot, counters.
+"""The one device contract: every live source (cameras, gloves, hand mocap, trackers, the simulated rig's
+trackers) and the rig clock is a `ThreadedSource`, after lerobot's camera interface.
 
-A source opens its device in `connect()` (a UserError, with everything opened so far closed again, when
-that fails), then one reader thread calls `_step()` until `disconnect()`. Each step publishes at most one
-sample to a lock-protected latest-value slot: a slow consumer sees the newest sample, never a backlog.
-Memory is constant however long it runs (Python integers do not overflow).
+Contract (what callers may rely on):
+- `connect()` opens the device and starts one reader thread. It raises `DeviceAlreadyConnectedError` when
+  already connected, and a `UserError` naming what is wrong when the device cannot be opened; everything
+  opened so far is then closed again and no thread is left.
+- `disconnect()` stops and joins the reader thread, then closes the device; it does nothing when not
+  connected (so it is safe in `finally` blocks). `with source:` is connect ... disconnect.
+- `is_connected` is True between a successful connect and disconnect, also while a device that went away
+  is being retried (the glove) or after the reader stopped on its own (`ended` says why).
+- `latest()` is the newest sample, or None before the first: a lock-protected latest-value slot, so a slow
+  consumer sees the newest sample, never a backlog, and memory stays constant however long it runs.
+  Samples carry `t_us`, the host monotonic clock in µs (`now_us()`).
+- `rate_hz()` is the measured sample rate (one `RateMeter` over the capture times), `age_ms()` the age of
+  the newest sample; `counters` is a consistent copy of the counters (`SourceCounters` or a subclass);
+  `status()` is one line for a dashboard.
+
+A subclass implements `_open`, `_step` and `_close`, publishes with `_publish`, and may extend the counters
+(`_new_counters`, `_count`) and the status line (`_status_details`, or `status` itself).
 """
 from __future__ import annotations
 
@@ -14,15 +28,16 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
-from touchanything.devices.errors import UserError
+from touchanything.devices.errors import DeviceAlreadyConnectedError
+from touchanything.devices.rate_meter import RateMeter
 from touchanything.devices.worker_thread import start_worker, stop_worker
 
 T = TypeVar("T")
 
-RATE_SMOOTHING = 0.1
-"""Weight of the newest interval in the exponential average behind the measured rate."""
 ERROR_PAUSE_S = 0.01
 """The reader waits this long after a failed step, so a persistent failure cannot spin a core."""
+RATE_WINDOW = 30
+"""Samples over which a source's rate is measured, unless the source says otherwise."""
 
 
 def now_us() -> int:
@@ -45,22 +60,20 @@ class SourceCounters:
 
 
 class LatestSlot(Generic[T]):
-    """The newest sample and its capture time, with the measured arrival rate; thread-safe."""
+    """The newest sample and its capture time, with the measured rate of the samples; thread-safe."""
 
-    def __init__(self) -> None:
+    def __init__(self, rate_window: int = RATE_WINDOW) -> None:
         self._lock = threading.Lock()
         self._value: T | None = None
         self._t_us: int | None = None
         self._unread = False
-        self._interval_us: float | None = None
+        self._rate = RateMeter(rate_window)
 
-    def put(self, value: T, t_us: int) -> bool:
-        """Store `value` captured at `t_us`; True when it replaces a value nobody read."""
+    def put(self, value: T, t_us: int, samples: int = 1) -> bool:
+        """Store `value` captured at `t_us` (standing for `samples` samples completed then); True when it
+        replaces a value nobody read."""
         with self._lock:
-            if self._t_us is not None and t_us > self._t_us:
-                interval = t_us - self._t_us
-                self._interval_us = interval if self._interval_us is None else (
-                    self._interval_us + RATE_SMOOTHING * (interval - self._interval_us))
+            self._rate.tick(t_us / 1e6, samples)
             replaced_unread = self._unread
             self._value, self._t_us, self._unread = value, t_us, True
             return replaced_unread
@@ -71,23 +84,39 @@ class LatestSlot(Generic[T]):
             self._unread = False
             return self._value
 
+    def peek(self) -> tuple[T | None, int | None]:
+        """(newest value, its t_us) without marking it read; (None, None) before the first."""
+        with self._lock:
+            return self._value, self._t_us
+
+    def rate_hz(self) -> float:
+        """Samples per second over the last few (0 before two)."""
+        with self._lock:
+            return self._rate.rate()
+
+    def restart_rate(self) -> None:
+        """Measure the rate afresh from the next sample (after a gap that should not count)."""
+        with self._lock:
+            self._rate.reset()
+
     def summary(self) -> str:
         """"30.0 Hz, age 12 ms", or "no sample yet"."""
-        with self._lock:
-            t_us, interval = self._t_us, self._interval_us
+        _, t_us = self.peek()
         if t_us is None:
             return "no sample yet"
-        rate = f"{1e6 / interval:.1f} Hz" if interval else "rate unknown"
-        return f"{rate}, age {(now_us() - t_us) / 1000:.0f} ms"
+        rate = self.rate_hz()
+        return f"{f'{rate:.1f} Hz' if rate else 'rate unknown'}, age {(now_us() - t_us) / 1000:.0f} ms"
 
 
 class ThreadedSource(ABC, Generic[T]):
-    """Base of the live adapters: subclasses implement `_open`, `_step` and `_close` and publish samples
-    with `_publish`; they may extend the counters by overriding `_new_counters`."""
+    """Base of every live source (see the module docstring for the contract). `name` names the device in
+    errors, thread names and status rows."""
+
+    RATE_WINDOW = RATE_WINDOW
 
     def __init__(self, name: str) -> None:
         self.name = name
-        self._slot: LatestSlot[T] = LatestSlot()
+        self._slot: LatestSlot[T] = LatestSlot(self.RATE_WINDOW)
         self._lock = threading.Lock()
         self._counters = self._new_counters()
         self._stop = threading.Event()
@@ -95,7 +124,10 @@ class ThreadedSource(ABC, Generic[T]):
         self._ended: str | None = None
         self._last_error: str | None = None
 
+    # --- what a device implements -------------------------------------------------------------------
+
     def _new_counters(self) -> SourceCounters:
+        """Fresh counters (a subclass of SourceCounters for a device that counts more)."""
         return SourceCounters()
 
     @abstractmethod
@@ -104,21 +136,28 @@ class ThreadedSource(ABC, Generic[T]):
 
     @abstractmethod
     def _step(self) -> None:
-        """Read (waiting at most ~0.1 s) and publish at most one sample; raise SourceEnded when done."""
+        """Read (waiting at most ~0.1 s, or until `self._stop` is set) and publish at most one sample;
+        raise SourceEnded when done. Any other exception is counted in `errors` and the reader goes on."""
 
     @abstractmethod
     def _close(self) -> None:
         """Release whatever `_open` got, also when it got only part of it; safe to call twice."""
+
+    def _status_details(self) -> str:
+        """Extra text for the end of the standard status line (", ..."), or ""."""
+        return ""
+
+    # --- the contract -------------------------------------------------------------------------------
 
     @property
     def is_connected(self) -> bool:
         return self._thread is not None
 
     def connect(self) -> None:
-        """Open the device and start the reader thread."""
+        """Open the device and start the reader thread (see the module docstring)."""
         if self.is_connected:
-            raise UserError(f"{self.name} is already connected; disconnect it first")
-        self._slot, self._counters = LatestSlot(), self._new_counters()
+            raise DeviceAlreadyConnectedError(f"{self.name} is already connected; disconnect it first")
+        self._slot, self._counters = LatestSlot(self.RATE_WINDOW), self._new_counters()
         self._ended = self._last_error = None
         self._stop.clear()
         try:
@@ -144,8 +183,17 @@ class ThreadedSource(ABC, Generic[T]):
         self.disconnect()
 
     def latest(self) -> T | None:
-        """The newest sample, or None before the first."""
+        """The newest sample, or None before the first; kept after disconnect until the next connect."""
         return self._slot.get()
+
+    def rate_hz(self) -> float:
+        """Measured samples per second over the last few samples (0 before two)."""
+        return self._slot.rate_hz()
+
+    def age_ms(self) -> float | None:
+        """Milliseconds since the newest sample was captured, or None before the first."""
+        _, t_us = self._slot.peek()
+        return None if t_us is None else (now_us() - t_us) / 1000
 
     @property
     def counters(self) -> SourceCounters:
@@ -158,6 +206,11 @@ class ThreadedSource(ABC, Generic[T]):
         """Why the reader stopped on its own (end of file, device gone), or None while it runs."""
         return self._ended
 
+    @property
+    def last_error(self) -> str | None:
+        """The last failed step ("OSError: ..."), or None."""
+        return self._last_error
+
     def status(self) -> str:
         """One line for a dashboard, e.g. "connected, 30.0 Hz, age 12 ms, 300 samples, 0 unread, 0 errors"."""
         if not self.is_connected:
@@ -165,14 +218,37 @@ class ThreadedSource(ABC, Generic[T]):
         counts = self.counters
         counters = ", ".join(f"{getattr(counts, field.name)} {field.name}" for field in dataclasses.fields(counts))
         state = f"stopped ({self._ended})" if self._ended else "connected"
-        error = f", last error: {self._last_error}" if self._last_error else ""
-        return f"{state}, {self._slot.summary()}, {counters}{error}"
+        return f"{state}, {self._slot.summary()}, {counters}{self._status_details()}{self._error_suffix()}"
 
-    def _publish(self, sample: T, t_us: int) -> None:
-        replaced_unread = self._slot.put(sample, t_us)
+    # --- helpers for devices ------------------------------------------------------------------------
+
+    def _publish(self, sample: T, t_us: int, samples: int = 1, **counts: int) -> None:
+        """Make `sample` (captured at host time `t_us`) the latest; it stands for `samples` samples (a read
+        that completed several publishes only the newest). `counts` are added to the counters at the same
+        time, so a reader never sees the sample without them."""
+        replaced_unread = self._slot.put(sample, t_us, samples)
         with self._lock:
-            self._counters.samples += 1
+            self._counters.samples += samples
             self._counters.unread += replaced_unread
+            self._add_counts(counts)
+
+    def _count(self, **counts: int) -> None:
+        """Add to the named counters, e.g. `self._count(dropped=2)`."""
+        with self._lock:
+            self._add_counts(counts)
+
+    def _add_counts(self, counts: dict[str, int]) -> None:
+        for name, amount in counts.items():
+            setattr(self._counters, name, getattr(self._counters, name) + amount)
+
+    def _note_error(self, exc: BaseException) -> None:
+        """Count a failure (the source goes on) and keep it for the status line."""
+        self._count(errors=1)
+        self._last_error = f"{type(exc).__name__}: {exc}"
+
+    def _error_suffix(self) -> str:
+        """", last error: ..." when a step failed since connect, else ""."""
+        return f", last error: {self._last_error}" if self._last_error else ""
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -182,7 +258,5 @@ class ThreadedSource(ABC, Generic[T]):
                 self._ended = str(end)
                 return
             except Exception as exc:  # noqa: BLE001 - the reader must outlive a bad sample; counted and shown
-                with self._lock:
-                    self._counters.errors += 1
-                self._last_error = f"{type(exc).__name__}: {exc}"
+                self._note_error(exc)
                 self._stop.wait(ERROR_PAUSE_S)

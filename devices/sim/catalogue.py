@@ -20,7 +20,6 @@ class ObjectSpec:
 
 
 GRASP, PRESS, SQUEEZE, SLIDE, CARRY, HOLD_PRESS = "hold", "press", "squeeze", "slide", "carry", "hold_and_press"
-SINGLE_HAND_ACTIONS = (GRASP, PRESS, SQUEEZE, SLIDE)
 BIMANUAL_ACTIONS = (CARRY, HOLD_PRESS)
 
 CATALOGUE = {o.id: o for o in (

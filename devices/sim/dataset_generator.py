@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.episodes.dataset_split import SPLIT_KEYS, partition_seen
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, partition_seen
 from touchanything.devices.errors import UserError
 from touchanything.devices.sim.catalogue import SCENES, UNSEEN_OBJECTS
 from touchanything.devices.sim.episode_generator import CAMERAS, EpisodeSpec, EpisodeStats, generate_episode
 
 UNSEEN_SHARE = 0.2
-CARD_JSON, CARD_MD, SPLIT_FILE = "dataset_card.json", "dataset_card.md", "split.json"
+CARD_JSON, CARD_MD = "dataset_card.json", "dataset_card.md"
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,6 @@ Every stream loops over the episode, all from the same start.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +20,7 @@ from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.openvr_trackers import TrackerReading
+from touchanything.devices.hardware.threaded_source import ThreadedSource, now_us
 from touchanything.devices.sim.glove_serial import SimulatedGloveSerial, episode_glove_provider
 from touchanything.devices.sim.rokoko_sender import RokokoSenderConfig, SimulatedRokokoSender, episode_hands_provider
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
@@ -40,33 +40,37 @@ class SimulatedRigConfig:
         return self.link_dir / f"usb-Juqiao_JQ_glove_{hand}-if00"
 
 
-class EpisodeTrackers:
-    """The episode's tracker poses as a live source: `latest()` is the pose of the frame due now."""
+class EpisodeTrackers(ThreadedSource[TrackerReading]):
+    """The episode's tracker poses as a live source (the ThreadedSource contract): at every frame period
+    it publishes the pose of the frame due then, stamped with that frame's due time, looping."""
 
     def __init__(self, episode: Episode) -> None:
         if episode.trackers is None or episode.num_frames == 0:
             raise UserError(f"{episode.path}: the episode has no tracker stream to simulate")
+        super().__init__("recorded trackers")
         self.episode = episode
-        self._start_us: int | None = None
+        self._period_us = 1e6 / episode.fps
+        self._start_us = 0
+        self._next_tick = 0
 
-    def connect(self) -> None:
-        self._start_us = time.monotonic_ns() // 1000
+    def _open(self) -> None:
+        self._start_us, self._next_tick = now_us(), 0
 
-    def disconnect(self) -> None:
-        self._start_us = None
-
-    def latest(self) -> TrackerReading | None:
-        if self._start_us is None:
-            return None
-        period_us = 1e6 / self.episode.fps
-        tick = math.floor((time.monotonic_ns() // 1000 - self._start_us) / period_us)
+    def _step(self) -> None:
+        """Wait for the next frame's due time; publish the frame due now (skipping any that went by)."""
+        due_us = self._start_us + round(self._next_tick * self._period_us)
+        if self._stop.wait(max(due_us - now_us(), 0) / 1e6):
+            return
+        tick = max(self._next_tick, math.floor((now_us() - self._start_us) / self._period_us))
         frame = tick % self.episode.num_frames
         trackers = self.episode.trackers
         poses = {role: trackers.poses[frame, r].copy() for r, role in enumerate(TRACKER_ROLES) if trackers.valid[frame, r]}
-        return TrackerReading(poses, self._start_us + round(tick * period_us))
+        t_us = self._start_us + round(tick * self._period_us)
+        self._publish(TrackerReading(poses, t_us), t_us)
+        self._next_tick = tick + 1
 
-    def status(self) -> str:
-        return "replaying recorded poses" if self._start_us is not None else "not started"
+    def _close(self) -> None:
+        """Nothing to release: the episode belongs to the simulated rig."""
 
 
 class SimulatedLiveRig:

@@ -9,6 +9,7 @@ import numpy as np
 
 from touchanything.devices.episodes.episode_files import write_camera_matrices
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
+from touchanything.devices.episodes.raw_episode import CAMERA_FILE
 from touchanything.devices.rig.pose_transform import wilor_focal_px, wilor_from_camera
 from touchanything.devices.sim.cameras import HEIGHT, WIDTH, head_camera, wrist_camera
 from touchanything.devices.sim.catalogue import BIMANUAL_ACTIONS, CATALOGUE, SCENES, UNSEEN_OBJECTS
@@ -20,7 +21,7 @@ from touchanything.devices.sim.task_scripts import SIDES, Planner
 from touchanything.devices.sim.touch import Glove, cell_pressure
 from touchanything.devices.sim.visibility import visible
 from touchanything.devices.sim.world import make_object, object_timeline, static_faces
-from touchanything.devices.snapshot import FPS
+from touchanything.devices.snapshot import FPS, VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import TactileConfig
 
@@ -28,6 +29,7 @@ WILOR_FOCAL = wilor_focal_px(WIDTH, HEIGHT)
 GLOVE_COLOUR = (44, 44, 50)
 SLEEVES = ((60, 80, 120), (120, 60, 50), (80, 80, 80), (150, 140, 120), (40, 90, 70))
 CAMERAS = ("chest", "left", "right")
+"""The cameras' names in `camera_matrix.txt` and the dataset card, in `VIEW_NAMES` order."""
 CONTACT = 0.1
 DEAD_COLUMN_PROBABILITY = 0.25
 VISIBILITY_EVERY = 5
@@ -154,13 +156,13 @@ def generate_episode(root: Path, spec: EpisodeSpec, layout: TactileLayout | None
             _count(stats, hands, pressure, labels[k], cameras if k % VISIBILITY_EVERY == 0 else [], objects)
             wilor = [_wilor(cameras[0], hand.joints, rng) for hand in hands]
             writer.write(EpisodeFrame(
-                images=dict(zip(("ego", "wrist_left", "wrist_right"), images)),
+                images=dict(zip(VIEW_NAMES, images)),
                 wilor=(np.stack([w[0] for w in wilor]), np.array([w[1] for w in wilor])),
                 rokoko=(rokoko_joints(np.stack([h.joints for h in hands])), np.ones(2, bool)),
                 glove=(glove.raw(pressure, layout, rng), np.ones(2, bool), np.stack([quat_wxyz(p[:3, :3]) for p in hand_poses[k]])),
                 trackers=(tracker_poses(cameras[0].pose, hand_poses[k]), np.ones(3, bool)),
             ))
-    write_camera_matrices(folder / "camera_matrix.txt", {name: cam.matrix for name, cam in zip(CAMERAS, cameras)})
+    write_camera_matrices(folder / CAMERA_FILE, {name: cam.matrix for name, cam in zip(CAMERAS, cameras)})
     return stats
 
 

@@ -1,24 +1,56 @@
-"""Streaming-engine settings and the runtime they select (ONNX graphs exported on first use and cached)."""
+"""Streaming-engine settings: which runtime and precision, which views, which output position and rate.
+
+Pure configuration: checking a config builds nothing; `touchanything.inference.engine.engine_runtime.make_runtime`
+turns it into a runtime.
+"""
 from __future__ import annotations
 
-import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
 
+import torch
+
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.inference.engine.engine_runtime import MANIFEST, OnnxRuntime, TorchRuntime, check_runtime, read_manifest
-from touchanything.inference.model.model_config import config_to_dict
-from touchanything.inference.model.touch_model import TouchAnything
+from touchanything.inference.model.torch_device import check_precision, resolve_device
 
+RUNTIMES = {"torch": ("fp32", "bf16", "fp16"), "onnx": ("fp32", "int8")}
+"""Runtime → the precisions it offers."""
 OUTPUTS = ("newest", "centre", "stitched")
 INVALID_HANDS = ("skip", "official")
 
 
+def engine_device(runtime: str, device: str) -> torch.device:
+    """The device `runtime` runs on for the `--device` setting: torch resolves it (`resolve_device`); ONNX
+    Runtime runs on the CPU here (the CPU build is installed), so `auto` means the CPU for it and a CUDA
+    device is one UserError line."""
+    if runtime == "onnx":
+        if device not in ("auto", "cpu"):
+            resolve_device(device)  # a malformed name is named as such
+            raise UserError(f"runtime onnx runs on the CPU only (onnxruntime's CPU build); use --runtime torch "
+                            f"for --device {device}, or --device cpu")
+        return torch.device("cpu")
+    return resolve_device(device)
+
+
+def check_runtime(runtime: str, precision: str, device: str = "auto") -> torch.device:
+    """The device the runtime will use; UserError for an unknown runtime / precision pair, a device that is
+    absent, or a pair the device cannot run (fp16 on the CPU, ONNX on a GPU)."""
+    if runtime not in RUNTIMES:
+        raise UserError(f"unknown runtime {runtime!r}; choose from {', '.join(RUNTIMES)}")
+    if precision not in RUNTIMES[runtime]:
+        raise UserError(f"runtime {runtime} has no precision {precision!r}; choose from {', '.join(RUNTIMES[runtime])}")
+    resolved = engine_device(runtime, device)
+    if runtime == "torch":
+        check_precision(precision, resolved)
+    return resolved
+
+
 @dataclass(frozen=True)
 class EngineConfig:
-    """runtime/precision: torch fp32|bf16|fp16 (fp16 on GPU only), onnx fp32|int8. device: torch device.
+    """runtime/precision: torch fp32|bf16|fp16 (fp16 on GPU only), onnx fp32|int8. device: `auto` (the first
+        CUDA GPU when there is one, else the CPU; ONNX: the CPU), `cpu`, `cuda`, `cuda:N`.
     onnx_dir: graphs from `touchanything export-onnx` (None: exported on first use into the user cache).
     views: the views the engine may use (a subset of the present ones is used per frame).
     output: newest (no look-ahead), centre (window position 4: 6 frames = 200 ms look-ahead) or
@@ -26,17 +58,19 @@ class EngineConfig:
     every: predict every k-th frame and hold the last prediction in between (newest output only).
     invalid_hands: skip (a hand without a valid pose is not predicted) or official (fed as −10 joints
         and predicted anyway).
-    threads: CPU threads for the model (see `compute_threads`)."""
+    threads: CPU threads for the model (see `compute_threads`).
+    capture: on a CUDA GPU, capture the torch runtime's calls as CUDA graphs (False: eager, for comparison)."""
 
     runtime: str = "torch"
     precision: str = "fp32"
-    device: str = "cpu"
+    device: str = "auto"
     onnx_dir: Path | None = None
     views: tuple[str, ...] = VIEW_NAMES
     output: str = "newest"
     every: int = 1
     invalid_hands: str = "skip"
     threads: int | None = None
+    capture: bool = True
 
     def compute_threads(self) -> int:
         """CPU threads for the model (None: all cores but one, so capture, decoding and display keep a core)."""
@@ -58,42 +92,3 @@ class EngineConfig:
         if unknown or "ego" not in self.views:
             raise UserError(f"views must include ego and come from {', '.join(VIEW_NAMES)}; got {', '.join(self.views)}")
         return self
-
-
-def model_digest(model: TouchAnything) -> str:
-    """A short hash of the model's weights and config (names the cached ONNX export)."""
-    digest = hashlib.sha256(repr(config_to_dict(model.config)).encode())
-    for name, tensor in sorted(model.state_dict().items()):
-        digest.update(name.encode())
-        digest.update(tensor.detach().float().cpu().numpy().tobytes())
-    return digest.hexdigest()[:16]
-
-
-def onnx_cache_dir(model: TouchAnything) -> Path:
-    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return root / "touchanything" / "onnx" / model_digest(model)
-
-
-def onnx_folder(model: TouchAnything, folder: Path | None, precision: str) -> Path:
-    """The folder holding graphs for `model` at `precision`; exported there first when missing (cache)."""
-    from touchanything.inference.engine.onnx_export import export_onnx
-
-    if folder is None:
-        folder = onnx_cache_dir(model)
-        has = (folder / MANIFEST).is_file() and precision in read_manifest(folder)["files"]
-        if not has:
-            export_onnx(model, folder, int8=True, source="cache")
-        return folder
-    manifest = read_manifest(folder)
-    if manifest["config"] != config_to_dict(model.config):
-        raise UserError(f"{folder}: the ONNX graphs were exported from a different model architecture")
-    if precision not in manifest["files"]:
-        raise UserError(f"{folder}: no {precision} graphs; export with `touchanything export-onnx --int8`")
-    return folder
-
-
-def make_runtime(model: TouchAnything, config: EngineConfig) -> TorchRuntime | OnnxRuntime:
-    config.check()
-    if config.runtime == "torch":
-        return TorchRuntime(model, config.precision, config.device, config.compute_threads())
-    return OnnxRuntime(onnx_folder(model, config.onnx_dir, config.precision), config.precision, config.compute_threads())

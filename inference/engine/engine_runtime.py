@@ -1,110 +1,100 @@
-"""Runtimes for the streaming engine's two halves: torch (fp32, bf16; fp16/bf16 on GPU) and ONNX Runtime
-(fp32, int8). All share one interface, so selecting a runtime never changes the engine.
-
-`encode(images (V, 3, S, S) float32, view_ids (V,) int64) -> frame tokens` (opaque, cached by the engine);
-`head(frame_tokens [T of them], joints (P, J, 3), joint_ids (J,), positions (P,)) -> (P, J // 21, 21, 21)`
-float32 numpy in [0, 1].
+"""Runtimes for the streaming engine's two halves: torch here (fp32, bf16; fp16/bf16 on GPU) and ONNX
+Runtime (`touchanything.inference.engine.onnx_runtime`: fp32, int8). All satisfy `Runtime`, so selecting a
+runtime never changes the engine; `make_runtime` builds the one an `EngineConfig` selects.
 """
 from __future__ import annotations
 
-import json
-from pathlib import Path
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any, Protocol
 
 import numpy as np
 import torch
 
-from touchanything.devices.errors import UserError
+from touchanything.inference.engine.captured_call import CapturedCalls
+from touchanything.inference.engine.engine_config import EngineConfig, check_runtime
 from touchanything.inference.engine.frame_encoder import FrameEncoder
+from touchanything.inference.engine.onnx_runtime import OnnxRuntime, onnx_folder
 from touchanything.inference.engine.window_head import WindowHead
+from touchanything.inference.model.preprocess import model_input, model_input_on_device
+from touchanything.inference.model.torch_device import autocast
 from touchanything.inference.model.touch_model import TouchAnything
 
-RUNTIMES = {"torch": ("fp32", "bf16", "fp16"), "onnx": ("fp32", "int8")}
-MANIFEST = "engine.json"
 
+class Runtime(Protocol):
+    """The streaming engine's view of a runtime. Frame tokens are opaque to the engine: what `encode`
+    returns (a torch tensor, a numpy array) is cached and handed back to `head`.
 
-def check_runtime(runtime: str, precision: str, device: str = "cpu") -> None:
-    """Raise UserError for an unknown runtime / precision pair or one the device cannot run."""
-    if runtime not in RUNTIMES:
-        raise UserError(f"unknown runtime {runtime!r}; choose from {', '.join(RUNTIMES)}")
-    if precision not in RUNTIMES[runtime]:
-        raise UserError(f"runtime {runtime} has no precision {precision!r}; choose from {', '.join(RUNTIMES[runtime])}")
-    if precision == "fp16" and device == "cpu":
-        raise UserError("fp16 needs a GPU (--device cuda); on CPU use bf16")
-    if device != "cpu" and not torch.cuda.is_available():
-        raise UserError(f"device {device!r} is not available (no CUDA GPU); use --device cpu")
+    `prepare(frames [V of (H, W, 3) uint8 RGB], size) -> model input` (on the runtime's device);
+    `encode(model input (V, 3, S, S) float32, view_ids (V,) int64) -> frame tokens`;
+    `head(frame_tokens [T of them], joints (P, J, 3), joint_ids (J,), positions (P,)) -> (P, J // 21, 21, 21)`
+    float32 numpy in [0, 1] (the one device-to-host copy of a prediction).
+    `device` is where it runs; `capture` says whether its calls are captured ("CUDA graphs") or why not."""
+
+    name: str
+    precision: str
+    device: torch.device
+    capture: str
+
+    def prepare(self, frames: list[np.ndarray], size: int) -> Any: ...
+
+    def encode(self, images: Any, view_ids: np.ndarray) -> Any: ...
+
+    def head(self, frame_tokens: list[Any], joints: np.ndarray, joint_ids: np.ndarray,
+             positions: np.ndarray) -> np.ndarray: ...
 
 
 class TorchRuntime:
-    """The model's own modules under torch; bf16/fp16 through autocast, results returned as float32."""
+    """The model's own modules under torch on any device; bf16/fp16 through autocast, results as float32.
 
-    def __init__(self, model: TouchAnything, precision: str = "fp32", device: str = "cpu", threads: int | None = None) -> None:
-        """`threads` sets torch's intra-op thread count, which is process-wide (None: leave it)."""
-        check_runtime("torch", precision, device)
+    On a CUDA GPU frames are uploaded as uint8 and resized and normalised there (`model_input_on_device`),
+    and the encoder (per view count) and the window head (per window length and hand set) are captured as
+    CUDA graphs (`CapturedCalls`); on the CPU the frames are prepared with cv2 and the same calls run
+    eagerly. `capture` says which."""
+
+    def __init__(self, model: TouchAnything, precision: str = "fp32", device: str = "auto", threads: int | None = None,
+                 capture: bool = True) -> None:
+        """`threads` sets torch's intra-op thread count, which is process-wide (None: leave it); `capture`
+        False runs a GPU eagerly too."""
+        self.device = check_runtime("torch", precision, device)
         if threads is not None:
             torch.set_num_threads(threads)
-        self.name, self.precision, self.device = "torch", precision, torch.device(device)
+        self.name, self.precision = "torch", precision
         model = model.to(self.device).eval()
-        self.encoder, self.window_head = FrameEncoder(model), WindowHead(model)
-        self._dtype = {"fp32": None, "bf16": torch.bfloat16, "fp16": torch.float16}[precision]
+        encoder, window_head = FrameEncoder(model), WindowHead(model)
+        self._encode = CapturedCalls(encoder, self._context, capture)
+        self._head = CapturedCalls(window_head, self._context, capture)
 
-    def _autocast(self):
-        return torch.autocast(self.device.type, dtype=self._dtype, enabled=self._dtype is not None)
+    @contextmanager
+    def _context(self) -> Iterator[None]:
+        """Every call of the model's modules: no autograd, autocast at the runtime's precision."""
+        with torch.no_grad(), autocast(self.device, self.precision):
+            yield
 
-    @torch.inference_mode()
-    def encode(self, images: np.ndarray, view_ids: np.ndarray) -> torch.Tensor:
-        with self._autocast():
-            tokens = self.encoder(torch.from_numpy(images).to(self.device), torch.from_numpy(view_ids).to(self.device))
-        return tokens.float()
+    @property
+    def capture(self) -> str:
+        modes = {self._encode.mode, self._head.mode} - {"not run yet"}
+        return "; ".join(sorted(modes)) or self._encode.expected_mode(self.device)
 
-    @torch.inference_mode()
+    def prepare(self, frames: list[np.ndarray], size: int) -> np.ndarray | torch.Tensor:
+        if self.device.type == "cuda":
+            return model_input_on_device(frames, size, self.device)
+        return model_input(frames, size)
+
+    def encode(self, images: np.ndarray | torch.Tensor, view_ids: np.ndarray) -> torch.Tensor:
+        images = torch.as_tensor(images).to(self.device, torch.float32)
+        return self._encode(images, torch.from_numpy(view_ids).to(self.device)).float()
+
     def head(self, frame_tokens: list[torch.Tensor], joints: np.ndarray, joint_ids: np.ndarray,
              positions: np.ndarray) -> np.ndarray:
         tensors = [torch.from_numpy(a).to(self.device) for a in (joints, joint_ids, positions)]
-        with self._autocast():
-            out = self.window_head(torch.stack(frame_tokens), *tensors)
-        return out.float().cpu().numpy()
+        return self._head(torch.stack(frame_tokens), *tensors).float().cpu().numpy()
 
 
-class OnnxRuntime:
-    """The two graphs written by `touchanything.inference.engine.onnx_export` under ONNX Runtime (CPU execution provider)."""
-
-    def __init__(self, folder: Path, precision: str = "fp32", threads: int | None = None) -> None:
-        import onnxruntime as ort
-
-        check_runtime("onnx", precision)
-        self.name, self.precision = "onnx", precision
-        self.manifest = read_manifest(folder)
-        files = self.manifest["files"][precision]
-        options = ort.SessionOptions()
-        options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-        options.log_severity_level = 3
-        options.intra_op_num_threads = threads or 0
-        # Spinning worker threads would steal the cores from preprocessing and the other graph between calls.
-        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
-        try:
-            self._encoder, self._head = (ort.InferenceSession(str(Path(folder) / files[part]), options,
-                                                              providers=["CPUExecutionProvider"])
-                                         for part in ("encoder", "head"))
-        except Exception as exc:  # onnxruntime raises its own exception types for unreadable graphs
-            raise UserError(f"{folder}: cannot open the ONNX graphs ({str(exc).splitlines()[0]})") from None
-
-    def encode(self, images: np.ndarray, view_ids: np.ndarray) -> np.ndarray:
-        return self._encoder.run(None, {"images": images, "view_ids": view_ids})[0]
-
-    def head(self, frame_tokens: list[np.ndarray], joints: np.ndarray, joint_ids: np.ndarray,
-             positions: np.ndarray) -> np.ndarray:
-        feed = {"frame_tokens": np.stack(frame_tokens), "joints": joints, "joint_ids": joint_ids, "positions": positions}
-        return self._head.run(None, feed)[0]
-
-
-def read_manifest(folder: Path) -> dict:
-    """The export's engine.json (config, input size, graph files per precision)."""
-    path = Path(folder) / MANIFEST
-    try:
-        manifest = json.loads(path.read_text())
-        manifest["files"], manifest["image_size"]
-    except FileNotFoundError:
-        raise UserError(f"{folder}: no {MANIFEST}; create the folder with `touchanything export-onnx`") from None
-    except (OSError, ValueError, KeyError, TypeError):
-        raise UserError(f"{path}: not a valid ONNX export manifest") from None
-    return manifest
+def make_runtime(model: TouchAnything, config: EngineConfig) -> Runtime:
+    """The runtime `config` selects for `model` (checked first). ONNX without `onnx_dir` uses the graphs
+    cached for this model, exporting them on first use (`onnx_runtime.onnx_folder`)."""
+    config.check()
+    if config.runtime == "torch":
+        return TorchRuntime(model, config.precision, config.device, config.compute_threads(), config.capture)
+    return OnnxRuntime(onnx_folder(model, config.onnx_dir, config.precision), config.precision, config.compute_threads())

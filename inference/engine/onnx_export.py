@@ -6,7 +6,8 @@
   positions (P,) int64 → pressure (P, J // 21, 21, 21).
 - `*.int8.onnx`: the same graphs with MatMul/Gemm weights quantised to int8 (ONNX Runtime dynamic
   quantisation; activations are quantised per call at run time).
-- `engine.json`: the model config, input size, token count and the graph files per precision.
+- `engine.json`: the model config, input size, token count and the graph files per precision (read back by
+  `read_manifest`).
 """
 from __future__ import annotations
 
@@ -21,7 +22,6 @@ from pathlib import Path
 import torch
 
 from touchanything.devices.errors import UserError
-from touchanything.inference.engine.engine_runtime import MANIFEST
 from touchanything.inference.engine.frame_encoder import FrameEncoder, bake_position_embedding
 from touchanything.inference.engine.window_head import JOINTS_PER_HAND, WindowHead
 from touchanything.inference.model.model_config import config_to_dict
@@ -30,6 +30,7 @@ from touchanything.inference.model.vit import PATCH
 
 WINDOW = 8
 OPSET = 18
+MANIFEST = "engine.json"
 
 
 @contextmanager
@@ -103,4 +104,17 @@ def export_onnx(model: TouchAnything, out_dir: Path, *, int8: bool = False, sour
                 "tokens": (model.config.image_size // PATCH) ** 2, "width": model.config.embed_dim,
                 "window": WINDOW, "opset": OPSET, "source": source, "files": files}
     (out_dir / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+    return manifest
+
+
+def read_manifest(folder: Path) -> dict:
+    """The export's engine.json (config, input size, graph files per precision)."""
+    path = Path(folder) / MANIFEST
+    try:
+        manifest = json.loads(path.read_text())
+        manifest["files"], manifest["image_size"]
+    except FileNotFoundError:
+        raise UserError(f"{folder}: no {MANIFEST}; create the folder with `touchanything export-onnx`") from None
+    except (OSError, ValueError, KeyError, TypeError):
+        raise UserError(f"{path}: not a valid ONNX export manifest") from None
     return manifest

@@ -6,9 +6,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
-@dataclass
+@dataclass(kw_only=True)
 class Prediction:
-    """The engine's output for frame `frame_index`.
+    """The engine's output for frame `frame_index` (built with keywords only).
 
     t_us: that frame's capture time (host monotonic µs); latency_ms = prediction time − t_us, so it
         includes any look-ahead of the output position.

@@ -15,14 +15,14 @@ import numpy as np
 
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.inference.engine.engine_config import EngineConfig, make_runtime
+from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.engine_runtime import Runtime, make_runtime
 from touchanything.inference.engine.frame_ring import CachedFrame, FrameRing, Window
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.engine.stitching import StitchAccumulator
 from touchanything.inference.engine.window_head import JOINTS_PER_HAND
 from touchanything.inference.model.model_config import CLIP_LENGTH
 from touchanything.inference.model.pose_encoder import prepare_poses, usable_hands
-from touchanything.inference.model.preprocess import resize_frame, to_model_input
 from touchanything.inference.model.touch_model import TouchAnything
 
 CENTRE = CLIP_LENGTH // 2
@@ -43,7 +43,7 @@ class StreamingEngine:
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.config = config.check()
         self.image_size = model.config.image_size
-        self.runtime = make_runtime(model, config)
+        self.runtime: Runtime = make_runtime(model, config)
         self.mask = (layout or TactileLayout.default()).nan_mask()
         self.clock = clock
         self.ring = FrameRing()
@@ -93,8 +93,7 @@ class StreamingEngine:
 
     def _encode(self, snapshot: Snapshot, views: tuple[str, ...], timings: dict) -> CachedFrame:
         start = time.perf_counter()
-        stacked = np.stack([resize_frame(snapshot.images[v], self.image_size) for v in views])
-        images = to_model_input(stacked).numpy()
+        images = self.runtime.prepare([snapshot.images[v] for v in views], self.image_size)
         view_ids = np.array([VIEW_NAMES.index(v) for v in views], np.int64)
         timings["preprocess"] = _ms(start)
         start = time.perf_counter()
@@ -134,8 +133,10 @@ class StreamingEngine:
                     exact: bool) -> Prediction:
         missing = [HAND_NAMES[h] for h in (0, 1) if not hands[h]]
         status = "ok" if not missing else ("no valid hand pose" if len(missing) == 2 else f"{missing[0]} hand: no pose")
-        prediction = Prediction(frame.frame_index, frame.t_us, pressure + self.mask, (bool(hands[0]), bool(hands[1])),
-                                frame.views, self._latency(frame.t_us), timings, status, exact)
+        prediction = Prediction(frame_index=frame.frame_index, t_us=frame.t_us, pressure=pressure + self.mask,
+                                hands_predicted=(bool(hands[0]), bool(hands[1])), views_used=frame.views,
+                                latency_ms=self._latency(frame.t_us), timings_ms=timings, status=status,
+                                window_exact=exact)
         self._emitted = max(self._emitted, frame.frame_index)
         self._last = prediction
         return prediction
@@ -168,9 +169,12 @@ class StreamingEngine:
 
     def _held(self, snapshot: Snapshot) -> Prediction:
         last = self._last
-        return Prediction(snapshot.frame_index, snapshot.t_us, last.pressure, last.hands_predicted, last.views_used,
-                          self._latency(snapshot.t_us), {}, "held (prediction every k-th frame)", last.window_exact, True)
+        return Prediction(frame_index=snapshot.frame_index, t_us=snapshot.t_us, pressure=last.pressure,
+                          hands_predicted=last.hands_predicted, views_used=last.views_used,
+                          latency_ms=self._latency(snapshot.t_us), status="held (prediction every k-th frame)",
+                          window_exact=last.window_exact, held=True)
 
     def _without_prediction(self, snapshot: Snapshot, views: tuple[str, ...], reason: str) -> Prediction:
-        return Prediction(snapshot.frame_index, snapshot.t_us, None, (False, False), views,
-                          self._latency(snapshot.t_us), {}, reason, False)
+        return Prediction(frame_index=snapshot.frame_index, t_us=snapshot.t_us, pressure=None,
+                          hands_predicted=(False, False), views_used=views, latency_ms=self._latency(snapshot.t_us),
+                          status=reason, window_exact=False)

@@ -21,6 +21,7 @@ import torch
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.engine_runtime import Runtime
 from touchanything.inference.engine.onnx_export import export_onnx
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_data import BenchEpisode, resident_mb
@@ -29,6 +30,7 @@ from touchanything.inference.evaluation.metrics import aggregate
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from touchanything.inference.model.pose_encoder import prepare_poses
 from touchanything.inference.model.preprocess import resize_frame, to_model_input
+from touchanything.inference.model.torch_device import device_label
 from touchanything.inference.model.touch_model import TouchAnything
 
 LOOKAHEAD_FRAMES = {"newest": 0, "centre": 6, "stitched": 14}
@@ -43,16 +45,20 @@ class BenchSetting:
     rate: int = 1
     output: str = "newest"
     invalid_hands: str = "skip"
+    device: str = "cpu"
+    capture: bool = True
 
     def label(self) -> str:
         views = "+".join(v.replace("wrist_", "") for v in self.views)
         extra = "".join([f" every {self.rate}" if self.rate > 1 else "", f" {self.output}" if self.output != "newest" else "",
-                         " official-invalid" if self.invalid_hands == "official" else ""])
+                         " official-invalid" if self.invalid_hands == "official" else "",
+                         " eager" if not self.capture else ""])
         return f"{self.model} {self.runtime}-{self.precision} {views}{extra}"
 
     def engine_config(self, onnx_dir: Path | None) -> EngineConfig:
         return EngineConfig(runtime=self.runtime, precision=self.precision, onnx_dir=onnx_dir, views=self.views,
-                            output=self.output, every=self.rate, invalid_hands=self.invalid_hands)
+                            output=self.output, every=self.rate, invalid_hands=self.invalid_hands, device=self.device,
+                            capture=self.capture)
 
 
 def settings_for(model: str, quick: bool) -> list[BenchSetting]:
@@ -164,8 +170,11 @@ def accuracy_fields(engine: StreamingEngine, episodes: list[BenchEpisode], refer
             "throughput_fps": sum(e.num_frames for e in episodes) / seconds}, outputs
 
 
-def latency_row(setting: BenchSetting, times: np.ndarray, peak_mb: float) -> dict:
+def latency_row(setting: BenchSetting, times: np.ndarray, peak_mb: float, runtime: Runtime) -> dict:
+    """The row of one setting's latency; `runtime` (the engine's, after the run) names device and capture."""
+    gpu = torch.cuda.get_device_name(runtime.device) if runtime.device.type == "cuda" else None
     return {"preset": setting.model, "runtime": setting.runtime, "precision": setting.precision,
+            "device": device_label(runtime.device), "gpu_name": gpu, "capture": runtime.capture,
             "views": "+".join(setting.views), "rate": setting.rate, "output": setting.output,
             "invalid_hands": setting.invalid_hands, "label": setting.label(),
             "threads": setting.engine_config(None).compute_threads(),
@@ -198,7 +207,7 @@ def bench_model(name: str, model: TouchAnything, episodes: list[BenchEpisode] | 
         latency = interleaved_latency(engines, clip, plan.rounds, plan.per_round)
     rows = []
     for setting, (times, peak) in latency.items():
-        row = latency_row(setting, times, peak)
+        row = latency_row(setting, times, peak, engines[setting].runtime)
         row.update(accuracy.get(setting, {}))
         row["peak_rss_mb"] = max(peak, accuracy.get(setting, {}).get("peak_rss_mb", 0.0))
         rows.append(row)

@@ -21,3 +21,24 @@ def to_model_input(frames: np.ndarray) -> torch.Tensor:
     x = torch.from_numpy(np.ascontiguousarray(frames)).float().div_(255.0)
     x = x.movedim(-1, -3)
     return (x - IMAGENET_MEAN) / IMAGENET_STD
+
+
+def model_input(frames: list[np.ndarray], size: int) -> np.ndarray:
+    """Views of one frame, each (H, W, 3) uint8 RGB of any size → (V, 3, S, S) float32 model input (CPU, cv2)."""
+    return to_model_input(np.stack([resize_frame(frame, size) for frame in frames])).numpy()
+
+
+def model_input_on_device(frames: list[np.ndarray], size: int, device: torch.device) -> torch.Tensor:
+    """The same as `model_input`, computed on `device`: each frame is uploaded as uint8, resized there with
+    bilinear half-pixel sampling (cv2 INTER_LINEAR's rule, without its 11-bit fixed-point weights), rounded
+    to whole intensities as cv2 does, then ImageNet-normalised. Agrees with `model_input` within 1/255 of
+    an intensity before normalisation (the fixed-point rounding); docs/engine.md has the measured bound."""
+    mean, std = IMAGENET_MEAN.to(device), IMAGENET_STD.to(device)
+    out = []
+    for frame in frames:
+        x = torch.from_numpy(np.ascontiguousarray(frame)).to(device, non_blocking=True).permute(2, 0, 1)[None].float()
+        if frame.shape[:2] != (size, size):
+            x = torch.nn.functional.interpolate(x, size=(size, size), mode="bilinear", align_corners=False)
+            x = x.round_().clamp_(0, 255)
+        out.append(x[0])
+    return (torch.stack(out).div_(255.0) - mean) / std

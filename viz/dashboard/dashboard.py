@@ -222,7 +222,7 @@ class Dashboard:
         if self._refresh_due("plots"):
             self.plots.update(state.history)
         if self._refresh_due("tables"):
-            update_tables(self, state)
+            update_tables(state, self.note, self.stats.fps)
 
     def _refresh_due(self, name: str) -> bool:
         """Whether `name` is due for a refresh (then the next one is scheduled)."""

@@ -3,7 +3,8 @@ tables refreshed from each SessionState."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import Protocol
 
 import dearpygui.dearpygui as dpg
 import numpy as np
@@ -11,10 +12,7 @@ import numpy as np
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.comparison_video import VIEW_LABELS
-from touchanything.viz.dashboard.dashboard_state import SessionState
-
-if TYPE_CHECKING:
-    from touchanything.viz.dashboard.dashboard import Dashboard
+from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState, SourceStatus
 
 SPEEDS = ("0.25", "0.5", "1", "2", "4")
 METRIC_ROWS = (("temporal_accuracy", "temporal accuracy"), ("contact_iou", "contact IoU"),
@@ -25,7 +23,18 @@ DEVICE_COLUMNS = (("source", 1.1), ("state", 2.2), ("rate", 0.7), ("age", 0.7), 
 """Device table columns and their relative widths."""
 
 
-def build_controls(dash: Dashboard) -> None:
+class ControlledDashboard(Protocol):
+    """What the controls use of the dashboard (`Dashboard` satisfies it; the dashboard imports this module,
+    never the other way round)."""
+
+    session: DashboardSession
+    outline: bool
+    note: str
+
+    def request_screenshot(self, path: Path | None = None) -> None: ...
+
+
+def build_controls(dash: ControlledDashboard) -> None:
     session = dash.session
     dpg.add_text("", tag="model_text")
     dpg.add_text("", tag="message_text", wrap=460)
@@ -60,7 +69,7 @@ def build_controls(dash: Dashboard) -> None:
         dpg.add_text("", tag="recording_text")
 
 
-def _play_pause(dash: Dashboard) -> None:
+def _play_pause(dash: ControlledDashboard) -> None:
     playback = dash.session.state().playback
     if playback is not None and playback.paused:
         dash.session.play()
@@ -68,15 +77,15 @@ def _play_pause(dash: Dashboard) -> None:
         dash.session.pause()
 
 
-def _set_views(dash: Dashboard) -> None:
+def _set_views(dash: ControlledDashboard) -> None:
     dash.session.set_views(tuple(v for v in VIEW_NAMES if dpg.get_value(f"view_{v}")))
 
 
-def _set_model(dash: Dashboard) -> None:
+def _set_model(dash: ControlledDashboard) -> None:
     dash.session.set_model(dpg.get_value("model"), dpg.get_value("tier"))
 
 
-def _set_threshold(dash: Dashboard, value: float) -> None:
+def _set_threshold(dash: ControlledDashboard, value: float) -> None:
     try:
         dash.session.set_threshold(float(value))
     except UserError as exc:
@@ -112,9 +121,10 @@ def build_tables() -> None:
                 dpg.add_text("", tag=f"device_{row}_full", wrap=500)
 
 
-def update_tables(dash: Dashboard, state: SessionState) -> None:
+def update_tables(state: SessionState, note: str, display_fps: float) -> None:
+    """Refresh the texts and tables from `state`; `note` (the dashboard's own notice) wins over the session's."""
     dpg.set_value("model_text", f"model: {state.model}")
-    dpg.set_value("message_text", dash.note or state.message)
+    dpg.set_value("message_text", note or state.message)
     dpg.configure_item("record_button", label="Stop recording" if state.recording else "Record")
     dpg.set_value("recording_text", state.recording or "")
     playback = state.playback
@@ -130,7 +140,7 @@ def update_tables(dash: Dashboard, state: SessionState) -> None:
     for stage in STAGES:
         value = state.stage_ms.get(stage)
         dpg.set_value(f"stage_{stage}", "skipped" if value is None else f"{value:.1f}")
-    dpg.set_value("performance_text", _performance_line(dash, state))
+    dpg.set_value("performance_text", _performance_line(state, display_fps))
     rows = state.sources[:DEVICE_ROWS]
     for row in range(DEVICE_ROWS):
         dpg.configure_item(f"device_row_{row}", show=row < len(rows))
@@ -145,15 +155,15 @@ def _metric(values: dict[str, float] | None, key: str) -> str:
     return "n/a" if value is None or math.isnan(value) else f"{value:.3f}"
 
 
-def _performance_line(dash: Dashboard, state: SessionState) -> str:
+def _performance_line(state: SessionState, display_fps: float) -> str:
     latency = state.history.get("latency_ms", np.zeros(0))[-30:]
-    text = f"display {dash.stats.fps:.0f} fps, engine {state.engine_fps:.1f} fps"
+    text = f"display {display_fps:.0f} fps, engine {state.engine_fps:.1f} fps"
     if latency.size:
         text += f", capture-to-prediction latency p50 {np.median(latency):.0f} ms, max {latency.max():.0f} ms (last 30)"
     return text
 
 
-def _device_cells(status) -> tuple[str, str, str, str, str]:
+def _device_cells(status: SourceStatus) -> tuple[str, str, str, str, str]:
     rate = "" if status.rate_hz is None else f"{status.rate_hz:.0f} Hz"
     age = "" if status.age_ms is None else f"{status.age_ms:.0f} ms"
     state = ("ok" if status.connected else "DOWN") + (f" - {status.detail}" if status.detail else "")

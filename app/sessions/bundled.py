@@ -1,0 +1,22 @@
+"""What ships with the checkout: the bundled models under `models/` and the sample episodes under
+`recordings/sample/`."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from touchanything.devices.episodes.episode_loader import find_raw_episodes
+
+ROOT = Path(__file__).resolve().parents[2]
+MODELS_DIR = ROOT / "models"
+SAMPLE_DIR = ROOT / "recordings" / "sample"
+
+
+def bundled_models() -> dict[str, Path]:
+    """name → checkpoint of every model shipped under models/ (smallest first by file size)."""
+    found = [p for p in MODELS_DIR.glob("*/best_model.pth")]
+    return {p.parent.name: p for p in sorted(found, key=lambda p: p.stat().st_size)}
+
+
+def sample_episodes() -> list[Path]:
+    """The bundled sample episodes (raw folders under recordings/sample)."""
+    return find_raw_episodes(SAMPLE_DIR) if SAMPLE_DIR.is_dir() else []

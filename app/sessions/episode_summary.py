@@ -1,0 +1,104 @@
+"""Text summaries of an episode (streams, pose, glove, pressure, problems) and of a dataset root, printed by
+`touchanything info` and before a replay."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
+from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_raw_episodes, open_episode
+from touchanything.devices.errors import DataError, UserError
+from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.inference.evaluation.metrics import contact_frames
+
+ROOT_PROBLEMS_SHOWN = 3
+"""Problems listed per trajectory in a dataset root's summary (the rest are counted)."""
+
+
+def _percent(values: np.ndarray) -> str:
+    return f"{100.0 * float(np.mean(values)):.0f}%" if values.size else "n/a"
+
+
+def _pressure_lines(episode: Episode) -> list[str]:
+    """Per-hand pressure statistics and the official contact share (both hands pooled)."""
+    if episode.pressure is None:
+        return ["pressure  none"]
+    grids = episode.pressure.grids
+    lines = []
+    for h, hand in enumerate(HANDS):
+        cells = grids[:, h][~np.isnan(grids[:, h])]
+        finite = np.isfinite(cells)
+        if not finite.all():
+            lines.append(f"pressure  {hand}: {int((~finite).sum())} inf values")
+        cells = cells[finite]
+        stats = f"mean {cells.mean():.3f}, max {cells.max():.3f}" if cells.size else "no valid cells"
+        lines.append(f"pressure  {hand}: {stats}")
+    contact = contact_frames(grids, TactileLayout.default().bend)
+    attrs = episode.pressure.attrs
+    norm = "separate (tactile/bend maxima stored)" if attrs.get("separate_normalization") else "not recorded"
+    lines.append(f"contact   {_percent(contact)} of frames (official rule: ≥ 5% of tactile cells > 0.1)")
+    lines.append(f"normalisation {norm}; baseline corrected: "
+                 + ", ".join(f"{h} {attrs.get(f'baseline_corrected_{h}', 'unknown')}" for h in HANDS))
+    return lines
+
+
+def episode_lines(episode: Episode) -> list[str]:
+    """Streams, pose and glove coverage, pressure statistics and the problems of one episode."""
+    seconds = episode.num_frames / episode.fps if episode.fps else 0.0
+    lines = [f"episode   {episode.scene}/{episode.task}/{episode.trajectory_id}  ({episode.path})",
+             f"frames    {episode.num_frames} at {episode.fps:g} fps ({seconds:.1f} s)"]
+    views = [f"{v} {s.width}×{s.height} ({s.num_frames} frames)" for v, s in episode.views.items()]
+    lines.append("views     " + ("; ".join(views) or "none"))
+    for name in ("wilor", "rokoko"):
+        hands = episode.hands(name)
+        if hands is not None:
+            lines.append(f"pose      {name}: " + ", ".join(f"{h} valid {_percent(hands.valid[:, i])}" for i, h in enumerate(HANDS)))
+    if episode.glove is not None:
+        lines.append("glove     raw present " + ", ".join(f"{h} {_percent(episode.glove.present[:, i])}" for i, h in enumerate(HANDS)))
+    if episode.trackers is not None:
+        lines.append("trackers  " + ", ".join(f"{r} {_percent(episode.trackers.valid[:, i])}" for i, r in enumerate(TRACKER_ROLES)))
+    lines += _pressure_lines(episode)
+    lines.append(f"problems  {len(episode.problems) or 'none'}")
+    return lines + _problem_lines(episode.problems, "  ")
+
+
+def _problem_lines(problems: list[str], indent: str, limit: int | None = None) -> list[str]:
+    """One `- problem` line each; with a `limit`, the first `limit` and then "… and N more"."""
+    shown = problems[:limit]
+    more = [f"{indent}… and {len(problems) - len(shown)} more"] if len(problems) > len(shown) else []
+    return [f"{indent}- {p}" for p in shown] + more
+
+
+def dataset_lines(root: Path) -> list[str]:
+    """One line per trajectory under a dataset root (its first problems), the total and the split."""
+    raw, hdf5 = find_raw_episodes(root), find_hdf5_files(root)
+    if not raw and not hdf5:
+        raise UserError(f"{root}: no episodes found (raw folders with chest.mp4, or .hdf5 files)")
+    lines, total = [f"dataset   {root}: {len(raw)} raw episode(s), {len(hdf5)} HDF5 file(s)"], 0
+    for path in raw + hdf5:
+        try:
+            with open_episode(path) as ep:
+                total += ep.num_frames
+                pose = _percent(ep.wilor.valid.any(axis=1)) if ep.wilor is not None else "n/a"
+                contact = _percent(contact_frames(ep.pressure.grids, TactileLayout.default().bend)) if ep.pressure else "n/a"
+                lines.append(f"  {path.relative_to(root)}: {ep.num_frames} frames, views {'+'.join(ep.view_names) or 'none'}, "
+                             f"pose valid {pose}, contact {contact}, problems {len(ep.problems)}")
+                problems = [p.removeprefix(f"{root}{os.sep}") for p in ep.problems]
+                lines += _problem_lines(problems, "      ", ROOT_PROBLEMS_SHOWN)
+        except DataError as exc:
+            lines.append(f"  {path.relative_to(root)}: unreadable: {exc}")
+    lines.append(f"total     {total} frames ({total / 30 / 60:.1f} min at 30 fps)")
+    split_path = root / SPLIT_FILE
+    if split_path.exists():
+        try:
+            split = read_split(split_path)
+            missing = sum(not p.exists() for key in SPLIT_KEYS for p in split[key])
+            lines.append("split     " + ", ".join(f"{k} {len(split[k])}" for k in SPLIT_KEYS)
+                         + (f"; {missing} listed file(s) missing" if missing else ""))
+        except DataError as exc:
+            lines.append(f"split     unreadable: {exc}")
+    return lines

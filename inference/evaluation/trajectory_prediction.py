@@ -1,0 +1,124 @@
+"""Every stride-1 clip of a trajectory through the model, each frame encoded once.
+
+The official protocol runs the whole model on every clip start 0…T−15 (8 frames, interval 2), so each frame's
+backbone runs up to 8 times. The backbone and the view fusion look at one frame only, so here each frame is
+read, resized and encoded once, in batches, on the model's device; the clips' window halves (`model.head`:
+temporal transformer, pose encoder, fusion, decoder) then run in batches over the cached frame features. The
+outputs are the official ones (the same modules on the same inputs; float rounding aside). Frames are read
+and encoded as the clips advance, so memory holds `batch_size + 14` frames' features, whatever T is.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.errors import UserError
+from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN, TACTILE_SIZE
+from touchanything.inference.model.pose_encoder import prepare_poses
+from touchanything.inference.model.preprocess import resize_frame, to_model_input
+from touchanything.inference.model.torch_device import autocast
+from touchanything.inference.model.touch_model import TouchAnything
+
+GRID = (2, TACTILE_SIZE, TACTILE_SIZE)
+
+
+@dataclass
+class TrajectoryPrediction:
+    """stitched, causal: (T, 2, 21, 21) float32, NaN where a frame has no prediction."""
+
+    stitched: np.ndarray
+    causal: np.ndarray
+
+
+class FrameFeatures:
+    """The per-frame half of the model over a trajectory, as a sliding buffer of (K, N, D) features.
+
+    `upto(end)` encodes frames up to `end` (exclusive) that are not encoded yet; `drop_before(first)` frees
+    older ones; `clips(starts)` gathers (B, 8, N, D) for clip starts."""
+
+    def __init__(self, model: TouchAnything, episode: Episode, views: tuple[str, ...], ego_path: str,
+                 batch_size: int, precision: str) -> None:
+        self.model, self.episode, self.views = model, episode, views
+        self.official_frames = views == ("ego",) and ego_path == "frames"
+        self.batch_size, self.precision = batch_size, precision
+        self.device = next(model.parameters()).device
+        self.first = self.end = 0
+        self.buffer: torch.Tensor | None = None
+
+    def _read(self, view: str, index: int) -> np.ndarray:
+        source = self.episode.views.get(view)
+        if source is None:
+            raise UserError(f"{self.episode.path}: view {view} is missing; evaluate with fewer views")
+        image = source.read(index)
+        if image is None:
+            raise UserError(f"{self.episode.path}: view {view} has no frame {index}")
+        return resize_frame(image, self.model.config.image_size)
+
+    def _encode(self, start: int, stop: int) -> torch.Tensor:
+        """(stop − start, N, D) features of frames [start, stop), in float32."""
+        inputs = {v: to_model_input(np.stack([self._read(v, i) for i in range(start, stop)]))[None].to(self.device)
+                  for v in self.views}
+        with autocast(self.device, self.precision):
+            if self.official_frames:
+                visual = self.model.vision_encoder(inputs["ego"])
+            else:
+                visual = self.model.multi_view_encoder(inputs)
+        return visual[0].float()
+
+    def upto(self, end: int) -> int:
+        """Encode frames [self.end, end); returns how many were encoded."""
+        done = 0
+        while self.end < end:
+            stop = min(end, self.end + self.batch_size)
+            new = self._encode(self.end, stop)
+            self.buffer = new if self.buffer is None else torch.cat([self.buffer, new])
+            done, self.end = done + stop - self.end, stop
+        return done
+
+    def drop_before(self, first: int) -> None:
+        if first > self.first and self.buffer is not None:
+            self.buffer = self.buffer[first - self.first:]
+            self.first = first
+
+    def clips(self, index: np.ndarray) -> torch.Tensor:
+        """index (B, 8) frame indices → (B, 8, N, D)."""
+        return self.buffer[torch.from_numpy(index - self.first).to(self.device)]
+
+
+@torch.no_grad()
+def predict_trajectory(model: TouchAnything, episode: Episode, views: tuple[str, ...], batch_size: int = 16,
+                       ego_path: str = "frames", precision: str = "fp32",
+                       on_frames: Callable[[int], None] | None = None) -> TrajectoryPrediction:
+    """Stitched (average of the clips covering a frame) and causal (last frame of the clip ending on it)
+    predictions of every stride-1 clip, `batch_size` clips (and frames) per forward pass. `on_frames(n)` is
+    told how many frames were just encoded (for a progress bar). A trajectory shorter than 15 frames or
+    without a WiLoR pose has no prediction (all NaN)."""
+    count = episode.num_frames
+    causal = np.full((count, *GRID), np.nan, np.float32)
+    if count < SPAN or episode.wilor is None:
+        on_frames and on_frames(count)
+        return TrajectoryPrediction(causal.copy(), causal)
+    stitched_sum, covered = np.zeros((count, *GRID), np.float64), np.zeros(count, np.int64)
+    poses = torch.from_numpy(prepare_poses(episode.wilor.joints.reshape(count, 42, 3), episode.wilor.valid))
+    features = FrameFeatures(model, episode, views, ego_path, batch_size, precision)
+    offsets = np.arange(CLIP_LENGTH) * FRAME_INTERVAL
+    starts = np.arange(count - SPAN + 1)
+    for first in range(0, len(starts), batch_size):
+        index = starts[first:first + batch_size, None] + offsets[None]
+        encoded = features.upto(int(index.max()) + 1)
+        on_frames and encoded and on_frames(encoded)
+        with autocast(features.device, precision):
+            out = model.head(features.clips(index), poses[index].to(features.device))
+        out = out.float().cpu().numpy()
+        features.drop_before(int(index[-1, 0]) + 1)  # the next batch's clips start after this one's
+        np.add.at(stitched_sum, index.ravel(), out.reshape(-1, *GRID))
+        np.add.at(covered, index.ravel(), 1)
+        causal[index[:, -1]] = out[:, -1]
+    stitched = np.full((count, *GRID), np.nan, np.float32)
+    has = covered > 0
+    stitched[has] = (stitched_sum[has] / covered[has, None, None, None]).astype(np.float32)
+    return TrajectoryPrediction(stitched, causal)

@@ -1,0 +1,83 @@
+"""Where the model runs: the `--device` setting (auto, cpu, cuda, cuda:N), the precisions a device offers, and
+the process group of a `torchrun` launch."""
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+
+import torch
+import torch.distributed as dist
+
+from touchanything.devices.errors import UserError
+
+DEVICE_HELP = "auto (the first CUDA GPU when there is one, else the CPU), cpu, cuda or cuda:N"
+PRECISIONS = {"fp32": None, "bf16": torch.bfloat16, "fp16": torch.float16}
+"""Precision name → the autocast dtype (None: no autocast)."""
+
+
+def resolve_device(name: str, local_rank: int = 0) -> torch.device:
+    """`auto` → cuda:`local_rank` when CUDA is available, else cpu; `cpu`; `cuda` (= cuda:`local_rank`) or
+    `cuda:N`. One UserError line for a malformed name, CUDA asked for but absent, or N out of range."""
+    if not isinstance(name, str):
+        raise UserError(f"device must be text ({DEVICE_HELP}), got {name!r}")
+    if name == "auto":
+        return torch.device(f"cuda:{local_rank}") if torch.cuda.is_available() else torch.device("cpu")
+    if name == "cpu":
+        return torch.device("cpu")
+    match = re.fullmatch(r"cuda(?::(\d+))?", name)
+    if match is None:
+        raise UserError(f"unknown device {name!r}; choose {DEVICE_HELP}")
+    if not torch.cuda.is_available():
+        raise UserError(f"device {name!r} asked for, but this machine has no usable CUDA GPU (torch "
+                        f"{torch.__version__}); use --device cpu or auto")
+    index = int(match.group(1)) if match.group(1) is not None else local_rank
+    if index >= torch.cuda.device_count():
+        raise UserError(f"device {name!r}: there are only {torch.cuda.device_count()} CUDA GPU(s) (cuda:0 … "
+                        f"cuda:{torch.cuda.device_count() - 1})")
+    return torch.device(f"cuda:{index}")
+
+
+def check_precision(precision: str, device: torch.device) -> None:
+    """UserError for an unknown precision or fp16 on the CPU."""
+    if precision not in PRECISIONS:
+        raise UserError(f"unknown precision {precision!r}; choose from {', '.join(PRECISIONS)}")
+    if precision == "fp16" and device.type == "cpu":
+        raise UserError("fp16 needs a CUDA GPU (--device cuda); on the CPU use fp32 or bf16")
+
+
+def device_label(device: torch.device) -> str:
+    """`cpu` or `cuda:0 (NVIDIA H100 80GB HBM3)`: what the dashboard, summaries and bench rows show."""
+    if device.type != "cuda":
+        return device.type
+    return f"{device} ({torch.cuda.get_device_name(device)})"
+
+
+def autocast(device: torch.device, precision: str):
+    """The autocast context of `precision` on `device` (a no-op for fp32)."""
+    dtype = PRECISIONS[precision]
+    return torch.autocast(device.type, dtype=dtype, enabled=dtype is not None)
+
+
+@dataclass(frozen=True)
+class ProcessGroup:
+    """rank / world size / local rank of this process; world 1 outside `torchrun`."""
+
+    rank: int = 0
+    world: int = 1
+    local_rank: int = 0
+
+    @property
+    def is_main(self) -> bool:
+        return self.rank == 0
+
+
+def join_process_group(device_name: str = "auto") -> ProcessGroup:
+    """Under `torchrun` (WORLD_SIZE > 1) initialise the process group once — NCCL when this process runs on
+    a CUDA GPU, else gloo — and return where this process stands."""
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    local = int(os.environ.get("LOCAL_RANK", "0"))
+    if world > 1 and not dist.is_initialized():
+        on_gpu = resolve_device(device_name, local).type == "cuda"
+        dist.init_process_group("nccl" if on_gpu else "gloo")
+    return ProcessGroup(dist.get_rank() if world > 1 else 0, world, local)

@@ -1,0 +1,143 @@
+"""The GPU code path, run where CI can run it: device parsing and errors, on-device preprocessing against cv2,
+captured calls falling back to eager on the CPU with identical outputs."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from touchanything.app.cli import main
+from touchanything.app.sessions.scene import read_scene
+from touchanything.devices.errors import UserError
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.inference.engine import captured_call
+from touchanything.inference.engine.captured_call import CapturedCall, CapturedCalls
+from touchanything.inference.engine.engine_config import EngineConfig, check_runtime
+from touchanything.inference.engine.engine_runtime import TorchRuntime
+from touchanything.inference.engine.streaming_engine import StreamingEngine
+from touchanything.inference.model.model_config import preset
+from touchanything.inference.model.preprocess import IMAGENET_STD, model_input, model_input_on_device
+from touchanything.inference.model.torch_device import check_precision, device_label, resolve_device
+from touchanything.inference.model.touch_model import TouchAnything
+
+pytestmark = pytest.mark.skipif(torch.cuda.is_available(), reason="checks the CPU fallbacks of a machine without CUDA")
+
+
+def test_auto_chooses_the_cpu_here_and_names_are_checked():
+    assert resolve_device("auto") == torch.device("cpu") and resolve_device("cpu") == torch.device("cpu")
+    assert device_label(torch.device("cpu")) == "cpu"
+    for name, message in (("cuda", "no usable CUDA GPU"), ("cuda:1", "no usable CUDA GPU"), ("gpu", "unknown device"),
+                          ("cuda:x", "unknown device"), ("", "unknown device"), (0, "device must be text")):
+        with pytest.raises(UserError, match=message):
+            resolve_device(name)
+
+
+def test_precision_and_runtime_device_pairs():
+    with pytest.raises(UserError, match="fp16 needs a CUDA GPU"):
+        check_precision("fp16", torch.device("cpu"))
+    with pytest.raises(UserError, match="unknown precision"):
+        check_precision("fp8", torch.device("cpu"))
+    assert check_runtime("onnx", "int8", "auto") == torch.device("cpu")  # ONNX Runtime is the CPU build
+    with pytest.raises(UserError, match="no usable CUDA GPU"):
+        check_runtime("onnx", "fp32", "cuda")
+    with pytest.raises(UserError, match="unknown device"):
+        check_runtime("onnx", "fp32", "tpu")
+
+
+@pytest.mark.parametrize("height, width, size", [(480, 640, 224), (48, 64, 112), (224, 224, 224), (1, 1, 14)])
+def test_on_device_preprocessing_agrees_with_cv2_within_one_intensity(height, width, size):
+    rng = np.random.default_rng(height)
+    frames = [rng.integers(0, 256, (height, width, 3), np.uint8) for _ in VIEW_NAMES]
+    frames[1][:] = 255  # saturated
+    frames[2][:] = 0  # black
+    on_cpu = model_input(frames, size)
+    on_device = model_input_on_device(frames, size, torch.device("cpu")).numpy()
+    assert on_device.shape == on_cpu.shape == (3, 3, size, size) and on_device.dtype == np.float32
+    intensity = np.abs(on_device - on_cpu) * IMAGENET_STD.numpy()[None] * 255
+    assert intensity.max() <= 1.0 + 1e-3
+    assert np.array_equal(on_device[1:], on_cpu[1:])  # flat frames resize exactly
+    if (height, width) == (size, size):
+        assert np.array_equal(on_device, on_cpu)
+
+
+def test_a_captured_call_runs_eagerly_on_the_cpu_with_identical_outputs():
+    weight = torch.randn(8, 4)
+    calls = CapturedCalls(lambda x: torch.tanh(x @ weight.T), lambda: torch.no_grad())
+    assert calls.mode == "not run yet"
+    for rows in (3, 5, 3):
+        x = torch.randn(rows, 4)
+        assert torch.equal(calls(x), torch.tanh(x @ weight.T))
+    assert len(calls.calls) == 2 and calls.mode == "eager (CUDA graphs need a CUDA GPU)"
+    single = CapturedCall(lambda x: x * 2, [torch.zeros(2)], lambda: torch.no_grad())
+    first = single(torch.ones(2))
+    single(torch.full((2,), 5.0))
+    assert torch.equal(first, torch.full((2,), 2.0))  # outputs are not overwritten by the next call
+
+
+def test_beyond_the_graph_limit_calls_run_eagerly(monkeypatch):
+    monkeypatch.setattr(captured_call, "MAX_GRAPHS", 2)
+    calls = CapturedCalls(lambda x: x + 1, lambda: torch.no_grad())
+    for rows in (1, 2, 3, 4):
+        assert torch.equal(calls(torch.zeros(rows)), torch.ones(rows))
+    assert len(calls.calls) == 2 and calls.eager_beyond_limit == 2
+
+
+def clip(count: int = 20) -> list[Snapshot]:
+    rng = np.random.default_rng(3)
+    joints = rng.uniform(-3, 3, (42, 3)).astype(np.float32)
+    joints[:, 2] += 50
+    return [Snapshot(i, i * 33_333, {v: rng.integers(0, 256, (48, 64, 3), np.uint8) for v in VIEW_NAMES}, joints,
+                     np.ones(2, bool)) for i in range(count)]
+
+
+def test_the_engine_reports_its_device_and_eager_mode_and_on_device_preprocessing_stays_close():
+    torch.manual_seed(0)
+    model = TouchAnything(preset("nano")).eval()
+    engine = StreamingEngine(model, EngineConfig(device="auto"))
+    runtime = engine.runtime
+    assert isinstance(runtime, TorchRuntime) and runtime.device == torch.device("cpu")
+    outputs = [p.pressure for s in clip() for p in engine.step(s)]
+    assert runtime.capture == "eager (CUDA graphs need a CUDA GPU)"
+    # the GPU's preprocessing on the same frames: within the measured bound of the cv2 path's predictions
+    runtime.prepare = lambda frames, size: model_input_on_device(frames, size, runtime.device)
+    engine.reset()
+    shifted = [p.pressure for s in clip() for p in engine.step(s)]
+    difference = np.nanmax(np.abs(np.array(outputs) - np.array(shifted)))
+    assert difference < 0.02
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["replay", "EPISODE", "--headless", "--device", "cuda"], "no usable CUDA GPU"),
+    (["demo", "--headless", "--device", "cuda:0"], "no usable CUDA GPU"),
+    (["replay", "EPISODE", "--headless", "--precision", "fp16", "--device", "cpu"], "fp16 needs a CUDA GPU"),
+    (["replay", "EPISODE", "--headless", "--runtime", "onnx", "--device", "cuda"], "no usable CUDA GPU"),
+    (["eval", "--checkpoint", "CKPT", "--data", "DATA", "--device", "cuda"], "no usable CUDA GPU"),
+    (["eval", "--checkpoint", "CKPT", "--data", "DATA", "--precision", "fp16", "--device", "cpu"], "fp16 needs a CUDA GPU"),
+])
+def test_every_command_names_a_device_it_cannot_use_in_one_line(argv, message, episode_dir, sim_hdf5_root,
+                                                                tiny_checkpoint, capsys):
+    scene = Path(__file__).resolve().parents[1] / "scenes" / "sim.toml"
+    values = {"EPISODE": str(episode_dir), "SCENE": str(scene), "CKPT": str(tiny_checkpoint), "DATA": str(sim_hdf5_root)}
+    assert main([values.get(a, a) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_live_keeps_the_rig_running_and_says_why_the_device_cannot_predict(capsys):
+    scene = Path(__file__).resolve().parents[1] / "scenes" / "sim.toml"
+    assert main(["live", "--scene", str(scene), "--headless", "--seconds", "1", "--device", "cuda"]) == 0
+    captured = capsys.readouterr()
+    assert "no prediction: device 'cuda' asked for, but this machine has no usable CUDA GPU" in captured.out
+    assert captured.err == "" and "model     no model" in captured.out
+
+
+def test_a_scene_names_the_device_of_its_model(tmp_path, capsys):
+    scene = (Path(__file__).resolve().parents[1] / "scenes" / "sim.toml").read_text().replace("../recordings", str(
+        Path(__file__).resolve().parents[1] / "recordings"))
+    (tmp_path / "cpu.toml").write_text(scene.replace('device = "auto"', 'device = "cpu"'))
+    (tmp_path / "gpu.toml").write_text(scene.replace('device = "auto"', 'device = "cuda:0"'))
+    assert read_scene(tmp_path / "cpu.toml").model.device == "cpu"
+    assert main(["live", "--scene", str(tmp_path / "gpu.toml"), "--headless", "--seconds", "0.5"]) == 0
+    assert "no prediction: device 'cuda:0' asked for" in capsys.readouterr().out

@@ -1,0 +1,71 @@
+"""One frame of the replay comparison video: the cameras (the head camera with the hand skeletons and the
+shown pressure on their joints), ground truth | prediction | error maps, a bottom strip (rolling metrics,
+engine time per frame, contact lamps) and a footer with the frame, the prediction's status and the metrics."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from touchanything.devices.snapshot import Snapshot
+from touchanything.inference.engine.prediction import Prediction
+from touchanything.inference.evaluation.running_metrics import RunningMetrics
+from touchanything.viz.comparison_video import STRIP_HEIGHT, comparison_frame
+from touchanything.viz.contact import contact_badges, hand_contact
+from touchanything.viz.hand_projection import draw_hands
+from touchanything.viz.line_plot import LATENCY_PLOT_MS, PLOT_SAMPLES, line_plot
+
+
+def metric_text(value: float) -> str:
+    """A metric with three decimals, or n/a when undefined (NaN)."""
+    return "n/a" if math.isnan(value) else f"{value:.3f}"
+
+
+def footer_text(frame_index: int, total: int, prediction: Prediction | None, metrics: RunningMetrics | None) -> str:
+    parts = [f"Frame {frame_index:04d}/{total}"]
+    if prediction is not None:
+        parts.append(f"{prediction.status} | {'+'.join(prediction.views_used)} | {prediction.timings_ms.get('total', 0):.0f} ms")
+    if metrics is not None:
+        rolling, total_metrics = metrics.rolling(), metrics.cumulative()
+        parts.append(f"V-IoU {metric_text(rolling['volumetric_iou'])} (3 s) {metric_text(total_metrics['volumetric_iou'])} (all)")
+        parts.append(f"C-IoU {metric_text(total_metrics['contact_iou'])}")
+    return "  |  ".join(parts)
+
+
+class ReplayFrameRenderer:
+    """Renders the frames of one episode, in order: keeps the recent per-frame series the bottom strip plots."""
+
+    def __init__(self, total_frames: int, bend: np.ndarray) -> None:
+        self.total_frames = total_frames
+        self.bend = bend
+        self.viou: list[float] = []
+        self.ciou: list[float] = []
+        self.step_ms: list[float] = []
+
+    def render(self, snapshot: Snapshot, truth: np.ndarray | None, shown: np.ndarray | None,
+               latest: Prediction | None, metrics: RunningMetrics | None) -> np.ndarray:
+        """The comparison frame of `snapshot`: `shown` is the prediction of this very frame (None when there
+        is none), `latest` the newest prediction so far, `metrics` the running metrics (None without truth)."""
+        self._add(metrics, latest)
+        images = dict(snapshot.images)
+        if "ego" in images:
+            images["ego"] = draw_hands(images["ego"], snapshot.joints, snapshot.joints_valid, shown)
+        footer = footer_text(snapshot.frame_index, self.total_frames, latest, metrics)
+        return comparison_frame(images, truth, shown, footer, self._strip(shown, truth))
+
+    def _add(self, metrics: RunningMetrics | None, prediction: Prediction | None) -> None:
+        rolling = metrics.rolling() if metrics is not None else None
+        self.viou.append(rolling["volumetric_iou"] if rolling else math.nan)
+        self.ciou.append(rolling["contact_iou"] if rolling else math.nan)
+        self.step_ms.append(prediction.timings_ms.get("total", math.nan) if prediction is not None else math.nan)
+        for series in (self.viou, self.ciou, self.step_ms):
+            del series[:-PLOT_SAMPLES]
+
+    def _strip(self, pred: np.ndarray | None, truth: np.ndarray | None) -> np.ndarray:
+        """(150, 1440, 3): rolling metrics | engine time per frame | contact lamps."""
+        title = "metrics, rolling 3 s" if truth is not None else "metrics: n/a (no ground truth)"
+        return np.concatenate([
+            line_plot({"V-IoU": self.viou, "C-IoU": self.ciou}, 480, STRIP_HEIGHT, 1.0, title, PLOT_SAMPLES),
+            line_plot({"engine": self.step_ms}, 480, STRIP_HEIGHT, LATENCY_PLOT_MS, "engine time per frame",
+                      PLOT_SAMPLES, " ms"),
+            contact_badges(hand_contact(pred, self.bend), hand_contact(truth, self.bend), 480, STRIP_HEIGHT)], axis=1)
