@@ -19,7 +19,7 @@ from touchanything.devices.errors import DeviceAlreadyConnectedError, DeviceNotC
 from touchanything.devices.hardware.camera_source import CameraFormat, CameraSource
 from touchanything.devices.hardware.oak_camera import DepthaiFrameSource, OakCamera, OakCameraConfig, host_clock_offset_us
 from touchanything.devices.hardware.opencv_camera import OpenCVCamera, OpenCVCameraConfig
-from touchanything.devices.hardware.threaded_source import LatestSlot, SourceEnded, now_us
+from touchanything.devices.hardware.threaded_source import DeviceLost, LatestSlot, SourceEnded, now_us
 
 RED, GREEN, BLUE_STEP = 200, 50, 8
 
@@ -102,6 +102,54 @@ def test_failed_connect_closes_and_leaves_no_thread_and_double_connect_is_refuse
             camera.connect()
     camera.disconnect()  # a second disconnect does nothing
     assert camera.closed == 1
+
+
+class FlakyCamera(CameraSource):
+    """A CameraSource whose device goes away after `before` frames (DeviceLost) and refuses `refusals`
+    reopens before it returns, numbering its frames from 0 again."""
+
+    def __init__(self, before: int, refusals: int) -> None:
+        super().__init__("flaky", reconnect_backoff_s=(0.05, 0.2))
+        self.before, self.refusals, self.next, self.opens, self.closed = before, refusals, 0, [], 0
+
+    def _open(self) -> None:
+        self.opens.append(time.monotonic())
+        if len(self.opens) > 1 and self.refusals:
+            self.refusals -= 1
+            raise UserError("flaky camera is not there")
+        self.next = 0
+
+    def _step(self) -> None:
+        if len(self.opens) == 1 and self.next == self.before:
+            raise DeviceLost("flaky camera vanished")
+        self._publish_frame(np.zeros((2, 2, 3), np.uint8), now_us(), self.next)
+        self.next += 1
+        self._stop.wait(0.005)
+
+    def _close(self) -> None:
+        self.closed += 1
+
+
+def test_a_lost_device_is_retried_with_doubling_back_off_and_its_sequence_goes_on():
+    camera = FlakyCamera(before=5, refusals=4)
+    with camera:
+        wait_for(lambda: camera.retrying)
+        status = camera.status()
+        assert any(status.startswith(f"disconnected, retrying ({reason}) every ≤ 0.2 s, ")
+                   for reason in ("flaky camera vanished", "flaky camera is not there")), status
+        assert camera.is_connected and camera.ended is None and camera.latest().sequence == 4
+        wait_for(lambda: camera.counters.reconnects == 1)
+        wait_for(lambda: camera.latest().sequence >= 10)
+        sequences = []
+        wait_for(lambda: sequences.append(camera.latest().sequence) or len(sequences) > 20)
+        assert not camera.retrying and camera.status().startswith("connected, ")
+        counts = camera.counters
+    assert (counts.reconnects, counts.dropped, counts.errors) == (1, 0, 0)
+    assert sequences == sorted(sequences)  # the frames after the reopen follow the ones before
+    waits = np.diff(camera.opens[1:])  # first retry after 0.05 s, then 0.1, 0.2, 0.2, 0.2 (the longest)
+    assert len(waits) == 4 and all(0.9 * w <= got < w + 0.15 for w, got in zip((0.1, 0.2, 0.2, 0.2), waits)), waits
+    assert camera.closed == 1 + 4 + 1  # the lost device, each refused reopen, the disconnect
+    assert not reader_threads()
 
 
 @settings(max_examples=60, deadline=None)

@@ -95,6 +95,7 @@ def test_every_source_keeps_the_one_contract(kind, tmp_path, episode_dir):
             wait_for(lambda: source.counters.samples >= 3)
             assert source.latest().t_us > 0 and wait_for(lambda: source.rate_hz() > 0)
             assert 0 <= source.age_ms() < 5_000 and isinstance(source.counters, SourceCounters)
+            assert not source.retrying and source.down_reason is None and source.counters.reconnects == 0
             status = source.status()
             assert status and "\n" not in status and "last error" not in status, status
         assert not source.is_connected
@@ -160,7 +161,7 @@ def test_scene_sections_are_read_through_the_registry(tmp_path):
                           ('[hands]\nsource = "leap"\n', '[hands] source must be "rokoko", got \'leap\''),
                           ('[trackers]\nkind = "openxr"\n', '[trackers] kind must be "openvr"'),
                           ("[trackers]\nrate_hz = 30\n", "[trackers] needs a roles setting"),
-                          ("[gloves.left]\nport = 'x'\nreconnect_backoff_s = [1, 2, 3]\n", "back-off")]:
+                          ("[gloves.left]\nport = 'x'\nreconnect_backoff_s = [2, 1]\n", "back-off")]:
         scene.write_text(text)
         with pytest.raises(UserError, match="^" + str(scene).replace(".", r"\.") + ": ") as error:
             read_scene(scene)

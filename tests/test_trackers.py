@@ -3,7 +3,9 @@ user error when the optional `openvr` package is not installed (it is not, here)
 from __future__ import annotations
 
 import importlib.util
+import sys
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -122,4 +124,103 @@ def test_connect_without_openvr_says_how_to_install_it():
     assert str(error.value) == INSTALL_HINT
     assert str(error.value) == "OpenVR trackers need the `openvr` package: pip install 'touchanything[trackers]'"
     assert not trackers.is_connected and trackers.status() == "disconnected" and trackers.latest() is None
+    assert not [t for t in threading.enumerate() if t.name.endswith(" reader")]
+
+
+class SteamVR:
+    """Stand-in for the `openvr` module and the SteamVR behind it (no OpenVR runtime exists here), built on
+    the `Pose` double above: one generic tracker "LHR-CHEST" at `tracker_index`; `quit()` announces a quit
+    (VREvent_Quit) and stops, `crash()` stops without a word (calls raise OpenVRError), `start()` runs again
+    (the tracker may come back at another device index)."""
+
+    VRApplication_Other, TrackingUniverseStanding, k_unMaxTrackedDeviceCount = 3, 1, 16
+    TrackedDeviceClass_GenericTracker, Prop_SerialNumber_String, VREvent_Quit = 3, 1002, 700
+
+    class OpenVRError(Exception):
+        pass
+
+    class VREvent_t:
+        eventType = 0
+
+    def __init__(self) -> None:
+        self.running, self.events, self.tracker_index = True, [], 2
+        self.inits = self.shutdowns = self.acknowledged = 0
+
+    def init(self, kind: int) -> SteamVR:
+        assert kind == self.VRApplication_Other
+        if not self.running:
+            raise self.OpenVRError("VRInitError_Init_NoServerForBackgroundApp")
+        self.inits += 1
+        return self
+
+    def shutdown(self) -> None:
+        self.shutdowns += 1
+
+    def pollNextEvent(self, event) -> bool:  # noqa: N802 - OpenVR's names
+        if not self.events:
+            return False
+        event.eventType = self.events.pop(0)
+        return True
+
+    def acknowledgeQuit_Exiting(self) -> None:  # noqa: N802
+        self.acknowledged += 1
+
+    def getDeviceToAbsoluteTrackingPose(self, universe: int, predict: float, count: int) -> list[Pose]:  # noqa: N802
+        if not self.running:
+            raise self.OpenVRError("IPC failed: vrserver is gone")
+        poses = [Pose(False, transform(np.eye(3), [0, 0, 0])) for _ in range(count)]
+        poses[self.tracker_index] = Pose(True, transform(np.eye(3), [0.0, 1.2, float(self.tracker_index)]))
+        return poses
+
+    def getTrackedDeviceClass(self, index: int) -> int:  # noqa: N802
+        return self.TrackedDeviceClass_GenericTracker if index == self.tracker_index else 0
+
+    def getStringTrackedDeviceProperty(self, index: int, prop: int) -> str:  # noqa: N802
+        return "LHR-CHEST"
+
+    def quit(self) -> None:
+        self.events.append(self.VREvent_Quit)
+        self.running = False
+
+    def crash(self) -> None:
+        self.running = False
+
+    def start(self, tracker_index: int) -> None:
+        self.tracker_index, self.running = tracker_index, True
+
+
+def wait_for(predicate, what: str, timeout: float = 5.0):
+    deadline = time.monotonic() + timeout
+    while not (result := predicate()):
+        assert time.monotonic() < deadline, f"{what} did not happen within {timeout} s"
+        time.sleep(0.005)
+    return result
+
+
+def chest_at(trackers: OpenVRTrackers, z: float) -> bool:
+    reading = trackers.latest()
+    return reading is not None and "chest" in reading.poses and reading.poses["chest"][2] == z
+
+
+def test_trackers_retry_while_steamvr_is_away_and_find_their_roles_again(monkeypatch):
+    steamvr = SteamVR()
+    monkeypatch.setitem(sys.modules, "openvr", steamvr)
+    trackers = OpenVRTrackers(OpenVRTrackersConfig({"LHR-CHEST": "chest"}, rate_hz=200, reconnect_backoff_s=(0.05, 0.3)))
+    with trackers:
+        wait_for(lambda: chest_at(trackers, 2.0), "the chest pose")
+        for stop, reason in ((steamvr.quit, "SteamVR quit"), (steamvr.crash, "OpenVR failed: IPC failed: vrserver is gone")):
+            reconnects = trackers.counters.reconnects
+            stop()
+            status = wait_for(lambda: (s := trackers.status()).startswith("disconnected, retrying (") and s, "retrying")
+            assert status.startswith(f"disconnected, retrying ({reason}) every ≤ 0.3 s, ")
+            assert trackers.is_connected and steamvr.shutdowns == steamvr.inits  # OpenVR was shut down
+            wait_for(lambda: "OpenVR could not start" in (trackers.down_reason or ""), "a failed reopen")
+            assert "VRInitError_Init_NoServerForBackgroundApp" in trackers.down_reason
+            time.sleep(0.4)
+            index = steamvr.tracker_index + 3
+            steamvr.start(index)  # SteamVR is back; the tracker has another device index now
+            wait_for(lambda: chest_at(trackers, float(index)), "the chest pose after the return", timeout=1.5)
+            assert trackers.counters.reconnects == reconnects + 1 and not trackers.retrying
+        assert steamvr.acknowledged == 1 and trackers.status().startswith("connected, ")
+    assert steamvr.shutdowns == steamvr.inits == 3 and trackers.counters.errors == 0
     assert not [t for t in threading.enumerate() if t.name.endswith(" reader")]

@@ -1,6 +1,11 @@
 """The common shape of camera sources: a reading (RGB image, host capture time, sequence number) in a
 latest-value slot, with frames lost before the slot counted from gaps in the sequence numbers, and the
-format the device actually negotiated beside the one the scene asked for."""
+format the device actually negotiated beside the one the scene asked for.
+
+A camera that goes away is reopened by the shared reader (`ThreadedSource`, `DeviceLost`); its sequence
+numbers go on increasing across the reopen (the first frame after it is one more than the last before),
+and `silent_s()` (time since the last frame, or since the open) lets a live camera notice a device that
+stopped delivering."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -8,7 +13,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from touchanything.devices.errors import DeviceNotConnectedError
-from touchanything.devices.hardware.threaded_source import SourceCounters, ThreadedSource
+from touchanything.devices.hardware.threaded_source import (
+    DEFAULT_BACKOFF_S,
+    SourceCounters,
+    ThreadedSource,
+    now_us,
+)
 
 
 @dataclass(frozen=True)
@@ -53,14 +63,20 @@ class CameraSource(ThreadedSource[CameraReading]):
 
     requested: the format the scene asks for (None: whatever the source gives, e.g. a replay pipeline).
     resizes: frames of another size are resized to the requested size (else delivered as they come).
+    reconnect_backoff_s: (first, longest) wait between attempts to reopen a camera that went away.
     """
 
-    def __init__(self, name: str, requested: CameraFormat | None = None, resizes: bool = False) -> None:
-        super().__init__(name)
+    def __init__(self, name: str, requested: CameraFormat | None = None, resizes: bool = False,
+                 reconnect_backoff_s: tuple[float, float] = DEFAULT_BACKOFF_S) -> None:
+        super().__init__(name, reconnect_backoff_s)
         self.requested = requested
         self._resizes = resizes
         self._negotiated: CameraFormat | None = None
         self._last_sequence: int | None = None
+        self._sequence_base = 0
+        self._rebase = False
+        self._heard_us = 0
+        self._frames_since_open = 0
 
     def _new_counters(self) -> CameraCounters:
         return CameraCounters()
@@ -79,7 +95,24 @@ class CameraSource(ThreadedSource[CameraReading]):
 
     def connect(self) -> None:
         self._last_sequence, self._negotiated = None, None
+        self._sequence_base, self._rebase = 0, False
+        self._heard_us, self._frames_since_open = now_us(), 0
         super().connect()
+
+    def _reopen(self) -> None:
+        """Open the camera again; its numbering restarts, so the next frame is rebased to follow the last."""
+        self._rebase = self._last_sequence is not None
+        self._heard_us, self._frames_since_open = now_us(), 0
+        self._open()
+
+    def silent_s(self) -> float:
+        """Seconds since the last frame, or since the (re)open before the first."""
+        return (now_us() - self._heard_us) / 1e6
+
+    @property
+    def frames_since_open(self) -> int:
+        """Frames published since the last (re)open."""
+        return self._frames_since_open
 
     def _status_details(self) -> str:
         """", negotiated 1280×720 at 15 fps (asked 640×480 at 30 fps; frames resized to 640×480)" when the
@@ -93,6 +126,10 @@ class CameraSource(ThreadedSource[CameraReading]):
 
     def _publish_frame(self, image: np.ndarray, t_us: int, sequence: int) -> None:
         """Publish one (H, W, 3) uint8 RGB frame; a jump in `sequence` counts the frames skipped."""
+        if self._rebase:  # the first frame after a reopen follows the last frame before it
+            self._sequence_base, self._rebase = self._last_sequence + 1 - sequence, False
+        sequence += self._sequence_base
+        self._heard_us, self._frames_since_open = now_us(), self._frames_since_open + 1
         skipped = 0
         if self._last_sequence is not None and sequence > self._last_sequence + 1:
             skipped = sequence - self._last_sequence - 1

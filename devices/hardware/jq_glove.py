@@ -3,7 +3,8 @@ side check and reconnection with back-off when the glove is unplugged.
 
 The port may be a stable symlink (`/dev/serial/by-id/...`); it is resolved again on every reconnect, so a
 replugged glove that comes back as another `/dev/ttyACM*` is found. While the port is away the source
-stays connected (`is_connected`), retries with back-off and says so in its status.
+stays connected (`is_connected`), and the shared reader (`ThreadedSource`) retries it with back-off and
+says so in its status.
 """
 from __future__ import annotations
 
@@ -18,7 +19,14 @@ import serial
 
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.jq_protocol import SIDE_SENSORS, JQParserCounters, JQSample, JQStreamParser
-from touchanything.devices.hardware.threaded_source import SourceCounters, ThreadedSource, now_us
+from touchanything.devices.hardware.threaded_source import (
+    DEFAULT_BACKOFF_S,
+    DeviceLost,
+    SourceCounters,
+    ThreadedSource,
+    check_backoff,
+    now_us,
+)
 
 SERIAL_BY_ID = Path("/dev/serial/by-id")
 OTHER_SIDE_GRACE_US = 1_000_000
@@ -40,7 +48,7 @@ class JQGloveConfig:
     side: str
     baudrate: int = 921600
     read_timeout_s: float = 0.02
-    reconnect_backoff_s: tuple[float, float] = (0.1, 2.0)
+    reconnect_backoff_s: tuple[float, float] = DEFAULT_BACKOFF_S
 
     def __post_init__(self) -> None:
         if self.side not in SIDE_SENSORS:
@@ -49,11 +57,7 @@ class JQGloveConfig:
             raise UserError(f"glove baud rate must be positive, got {self.baudrate}")
         if not (self.read_timeout_s > 0 and math.isfinite(self.read_timeout_s)):
             raise UserError(f"glove read timeout must be a positive number of seconds, got {self.read_timeout_s}")
-        backoff = tuple(self.reconnect_backoff_s)
-        object.__setattr__(self, "reconnect_backoff_s", backoff)
-        if not (len(backoff) == 2 and 0 < backoff[0] <= backoff[1] and math.isfinite(backoff[1])):
-            raise UserError("glove reconnect back-off must be (first, longest) seconds with 0 < first <= longest, "
-                            f"got {self.reconnect_backoff_s}")
+        object.__setattr__(self, "reconnect_backoff_s", check_backoff(self.reconnect_backoff_s, "glove"))
 
 
 @dataclass(frozen=True)
@@ -70,10 +74,9 @@ class GloveReading:
 @dataclass
 class JQGloveCounters(SourceCounters):
     """Totals since `connect`: samples of this side (published), samples of the other hand (not published),
-    reopenings of a lost port, and the parser's own counters (a copy)."""
+    reopenings of a lost port (`reconnects`, from the base), and the parser's own counters (a copy)."""
 
     other_side_samples: int = 0
-    reconnects: int = 0
     parser: JQParserCounters = field(default_factory=JQParserCounters)
 
 
@@ -104,13 +107,11 @@ class JQGlove(ThreadedSource[GloveReading]):
     RATE_WINDOW = 100
 
     def __init__(self, config: JQGloveConfig) -> None:
-        super().__init__(f"{config.side} glove on {config.port}")
+        super().__init__(f"{config.side} glove on {config.port}", config.reconnect_backoff_s)
         self.config = config
         self._parser = JQStreamParser()
         self._port: serial.Serial | None = None
         self._path = ""
-        self._down_reason: str | None = None
-        self._retry_s = config.reconnect_backoff_s[0]
         self._last_other_side_us: int | None = None
 
     def _new_counters(self) -> JQGloveCounters:
@@ -130,19 +131,15 @@ class JQGlove(ThreadedSource[GloveReading]):
         except SERIAL_ERRORS as exc:
             raise UserError(f"cannot open glove port {port}: {open_failure(port, exc)}") from None
         self._parser = JQStreamParser()
-        self._down_reason, self._last_other_side_us = None, None
-        self._retry_s = self.config.reconnect_backoff_s[0]
+        self._last_other_side_us = None
 
     def _step(self) -> None:
-        """Read what is waiting (at least one byte, up to the read timeout), parse, publish; reopen a lost port."""
-        if self._port is None:
-            self._reopen()
-            return
+        """Read what is waiting (at least one byte, up to the read timeout), parse, publish; a failed read
+        means the port went away (DeviceLost)."""
         try:
             data = self._port.read(self._port.in_waiting or 1)
         except SERIAL_ERRORS as exc:
-            self._lost(exc)
-            return
+            raise DeviceLost(self._failure(exc)) from None
         if data:
             self._take(self._parser.feed(data), now_us())
 
@@ -152,32 +149,20 @@ class JQGlove(ThreadedSource[GloveReading]):
         self._port = None
 
     def _failure(self, exc: Exception) -> str:
-        return "port not present" if not os.path.exists(self.config.port) else str(exc) or type(exc).__name__
-
-    def _lost(self, exc: Exception) -> None:
-        """The port failed (unplugged): close it and retry from the shortest back-off."""
-        self._close()
-        with self._lock:
-            self._down_reason, self._retry_s = self._failure(exc), self.config.reconnect_backoff_s[0]
-        self._slot.restart_rate()
+        """"<port>: port not present", or the port and what opening or reading it raised."""
+        why = "port not present" if not os.path.exists(self.config.port) else str(exc) or type(exc).__name__
+        return f"{self.config.port}: {why}"
 
     def _reopen(self) -> None:
-        """Wait the back-off, then try the port again (its symlink resolved anew)."""
-        if self._stop.wait(self._retry_s):
-            return
+        """Open the port again (its symlink resolved anew) and start the parser over; DeviceLost while away."""
         try:
             port, path = open_port(self.config.port, self.config.baudrate, self.config.read_timeout_s)
         except SERIAL_ERRORS as exc:
-            reason = self._failure(exc)
-            with self._lock:
-                self._down_reason = reason
-                self._retry_s = min(2 * self._retry_s, self.config.reconnect_backoff_s[1])
-            return
+            raise DeviceLost(self._failure(exc)) from None
         self._parser.reset()
         self._port = port
         with self._lock:
-            self._path, self._down_reason = path, None
-            self._counters.reconnects += 1
+            self._path = path
 
     def _take(self, samples: list[JQSample], t_us: int) -> None:
         """Publish the newest sample of this side; count the other side's."""
@@ -201,10 +186,9 @@ class JQGlove(ThreadedSource[GloveReading]):
             return "disconnected"
         port, counters = self.config.port, self.counters
         with self._lock:
-            reason, path = self._down_reason, self._path
-        if reason is not None:
-            return (f"disconnected: {port} ({reason}); retrying every ≤ {self.config.reconnect_backoff_s[1]:g} s, "
-                    f"{counters.reconnects} reconnects")
+            path = self._path
+        if (retrying := self._retrying_text()) is not None:
+            return f"{retrying}, {counters.reconnects} reconnects"
         age_ms, other_us = self.age_ms(), self._last_other_side_us
         own_stale = age_ms is None or age_ms * 1000 > OTHER_SIDE_GRACE_US
         if other_us is not None and now_us() - other_us < OTHER_SIDE_GRACE_US and own_stale:

@@ -12,6 +12,12 @@ Timestamps: `ImgFrame.getTimestamp()` is the capture time already synchronised t
 `dai.Clock.now()` reads, std::chrono::steady_clock (CLOCK_MONOTONIC on Linux, the clock behind
 Python's time.monotonic, so the offset measured at connect is ~0 µs there). The offset is measured
 rather than assumed so that other operating systems, whose Python monotonic clock may differ, get it right.
+
+Device gone (a `live` source: the OAK): its output queue closes (the device dropped off the bus, the
+pipeline died) or no frame came for `frame_timeout_s` (`FIRST_FRAME_TIMEOUT_S` after a (re)open, while the
+device boots the pipeline). The shared reader then closes it and reopens it by its device id (the one
+configured, else the one first opened) with back-off, counting `reconnects`. A host-only replay that ends
+is a normal end (`SourceEnded`).
 """
 from __future__ import annotations
 
@@ -29,13 +35,21 @@ import numpy as np
 
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.camera_source import CameraFormat, CameraSource
-from touchanything.devices.hardware.threaded_source import SourceEnded, now_us
+from touchanything.devices.hardware.threaded_source import (
+    DEFAULT_BACKOFF_S,
+    DeviceLost,
+    SourceEnded,
+    check_backoff,
+    now_us,
+)
 
 SEARCH_TIMEOUT_MS = "2000"
 """Default DEPTHAI_SEARCH_TIMEOUT: opening a listed device that then vanished fails in ~2 s, not ~11 s."""
 QUEUE_SIZE = 4
 GET_TIMEOUT = timedelta(milliseconds=100)
 CLOCK_PROBES = 5
+FIRST_FRAME_TIMEOUT_S = 10.0
+"""Longest wait for the first frame after a (re)open before a live device counts as gone."""
 ONE_US = timedelta(microseconds=1)
 
 PipelineBuilder = Callable[[], tuple[dai.Pipeline, dai.MessageQueue]]
@@ -44,15 +58,22 @@ PipelineBuilder = Callable[[], tuple[dai.Pipeline, dai.MessageQueue]]
 @dataclass(frozen=True)
 class OakCameraConfig:
     """device_id: DeviceID (MxID), IP address or USB port name; None = the first OAK found.
-    socket: camera board socket name (CAM_A = the colour camera). Output size in pixels, rate in Hz."""
+    socket: camera board socket name (CAM_A = the colour camera). Output size in pixels, rate in Hz.
+    frame_timeout_s: a camera silent this long is gone (reopened); reconnect_backoff_s: (first, longest)
+    wait between attempts to reopen it."""
 
     device_id: str | None = None
     socket: str = "CAM_A"
     width: int = 640
     height: int = 480
     fps: float = 30
+    frame_timeout_s: float = 2.0
+    reconnect_backoff_s: tuple[float, float] = DEFAULT_BACKOFF_S
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "reconnect_backoff_s", check_backoff(self.reconnect_backoff_s, "OAK camera"))
+        if not (math.isfinite(self.frame_timeout_s) and self.frame_timeout_s > 0):
+            raise UserError(f"OAK camera frame timeout must be a positive number of seconds, got {self.frame_timeout_s}")
         if self.socket not in dai.CameraBoardSocket.__members__:
             choices = ", ".join(name for name in dai.CameraBoardSocket.__members__ if name.startswith("CAM_"))
             raise UserError(f"unknown OAK camera socket {self.socket!r}; choose one of {choices}")
@@ -90,11 +111,16 @@ def frame_format(frame: dai.ImgFrame) -> CameraFormat:
 class DepthaiFrameSource(CameraSource):
     """The frames of one depthai output queue as a CameraSource. `build` creates the pipeline (not yet
     started) and the queue; connect starts the pipeline, disconnect stops it. `requested`: the format
-    asked of the pipeline, compared with the first frame's."""
+    asked of the pipeline, compared with the first frame's. `live`: the queue belongs to a device, so its
+    closing or `frame_timeout_s` without a frame means the device is gone (reopened through `build` with
+    back-off) rather than the end of the stream."""
 
-    def __init__(self, name: str, build: PipelineBuilder, requested: CameraFormat | None = None) -> None:
-        super().__init__(name, requested)
+    def __init__(self, name: str, build: PipelineBuilder, requested: CameraFormat | None = None, live: bool = False,
+                 frame_timeout_s: float = 2.0, reconnect_backoff_s: tuple[float, float] = DEFAULT_BACKOFF_S) -> None:
+        super().__init__(name, requested, reconnect_backoff_s=reconnect_backoff_s)
         self._build = build
+        self._live = live
+        self._frame_timeout_s = frame_timeout_s
         self._pipeline: dai.Pipeline | None = None
         self._queue: dai.MessageQueue | None = None
         self._offset_us = 0
@@ -108,7 +134,13 @@ class DepthaiFrameSource(CameraSource):
         try:
             frame = self._queue.get(GET_TIMEOUT)
         except dai.MessageQueue.QueueException:
+            if self._live:
+                raise DeviceLost(f"{self.name}: the depthai pipeline stopped") from None
             raise SourceEnded("the depthai pipeline stopped") from None
+        if frame is None and self._live:
+            limit = self._frame_timeout_s if self.frames_since_open else max(self._frame_timeout_s, FIRST_FRAME_TIMEOUT_S)
+            if (silent_s := self.silent_s()) > limit:
+                raise DeviceLost(f"{self.name}: no frame for {silent_s:.1f} s")
         if frame is not None:
             if self._negotiated is None:
                 self._negotiated = frame_format(frame)
@@ -116,10 +148,10 @@ class DepthaiFrameSource(CameraSource):
             self._publish_frame(frame_rgb(frame), t_us, frame.getSequenceNum())
 
     def _close(self) -> None:
-        if self._pipeline is not None:
-            self._pipeline.stop()
-            self._pipeline.wait()
-        self._pipeline = self._queue = None
+        pipeline, self._pipeline, self._queue = self._pipeline, None, None
+        if pipeline is not None:  # (stopping the pipeline of a vanished device may raise; it is dropped anyway)
+            pipeline.stop()
+            pipeline.wait()
 
 
 class OakCamera(DepthaiFrameSource):
@@ -127,12 +159,19 @@ class OakCamera(DepthaiFrameSource):
 
     def __init__(self, config: OakCameraConfig = OakCameraConfig()) -> None:
         super().__init__(f"OAK {config.device_id or 'camera'} {config.socket}", self._build_camera,
-                         CameraFormat(config.width, config.height, config.fps))
+                         CameraFormat(config.width, config.height, config.fps), live=True,
+                         frame_timeout_s=config.frame_timeout_s, reconnect_backoff_s=config.reconnect_backoff_s)
         self.config = config
         self._device: dai.Device | None = None
+        self._device_id = config.device_id
+
+    def connect(self) -> None:
+        self._device_id = self.config.device_id
+        super().connect()
 
     def _build_camera(self) -> tuple[dai.Pipeline, dai.MessageQueue]:
-        self._device = open_device(self.config.device_id)
+        self._device = open_device(self._device_id)
+        self._device_id = self._device_id or self._device.getDeviceId()  # reopened by the id first opened
         config = self.config
         try:
             pipeline = dai.Pipeline(self._device)
@@ -145,10 +184,12 @@ class OakCamera(DepthaiFrameSource):
                             f"{config.width}×{config.height} {config.fps:g} fps ({exc})") from None
 
     def _close(self) -> None:
-        super()._close()
-        if self._device is not None:
-            self._device.close()
-        self._device = None
+        try:
+            super()._close()
+        finally:
+            device, self._device = self._device, None
+            if device is not None:
+                device.close()
 
 
 def open_device(device_id: str | None) -> dai.Device:

@@ -9,10 +9,17 @@ Frames come out as (height, width, 3) uint8 RGB at the configured size; a source
 size is resized (INTER_AREA). What the device (or file) actually gives is read back after opening
 (CAP_PROP_FRAME_WIDTH / HEIGHT / FPS) as `negotiated`, and the status says so when it differs from the
 request. A live frame's `t_us` is the host time when OpenCV handed it over.
+
+Device gone (the reader closes the capture and reopens it by the same name with back-off, counting
+`reconnects`): a source path (a `/dev/v4l/by-id/…` link, a device node, a video file) that no longer
+exists, or a live camera that delivered no frame for `frame_timeout_s`. A device path is resolved again
+on every reopen, so a camera that comes back as another `/dev/video*` is found. A video file that simply
+ends (without `loop`) is a normal end (`SourceEnded`), not a lost device.
 """
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,7 +28,13 @@ import numpy as np
 
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.camera_source import CameraFormat, CameraSource
-from touchanything.devices.hardware.threaded_source import SourceEnded, now_us
+from touchanything.devices.hardware.threaded_source import (
+    DEFAULT_BACKOFF_S,
+    DeviceLost,
+    SourceEnded,
+    check_backoff,
+    now_us,
+)
 
 MAX_CATCH_UP_S = 1.0
 """A file reader further behind its schedule than this (a suspended machine) restarts the schedule
@@ -30,16 +43,23 @@ at the current frame instead of skipping frames to catch up."""
 
 @dataclass(frozen=True)
 class OpenCVCameraConfig:
-    """source: camera index, device path (/dev/video*) or video file path. Size in pixels; fps: the rate
-    asked of a camera, and the pace of a file that states none. loop: start a file over at its end."""
+    """source: camera index, device path (/dev/video*, /dev/v4l/by-id/…) or video file path. Size in pixels;
+    fps: the rate asked of a camera, and the pace of a file that states none. loop: start a file over at its
+    end. frame_timeout_s: a live camera silent this long is gone (reopened). reconnect_backoff_s: (first,
+    longest) wait between attempts to reopen a camera that went away."""
 
     source: int | str
     width: int = 640
     height: int = 480
     fps: float = 30
     loop: bool = False
+    frame_timeout_s: float = 2.0
+    reconnect_backoff_s: tuple[float, float] = DEFAULT_BACKOFF_S
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "reconnect_backoff_s", check_backoff(self.reconnect_backoff_s, "camera"))
+        if not (math.isfinite(self.frame_timeout_s) and self.frame_timeout_s > 0):
+            raise UserError(f"camera frame timeout must be a positive number of seconds, got {self.frame_timeout_s}")
         if self.width <= 0 or self.height <= 0:
             raise UserError(f"camera size must be positive, got {self.width}×{self.height}")
         if not (math.isfinite(self.fps) and self.fps > 0):
@@ -82,7 +102,8 @@ class OpenCVCamera(CameraSource):
     """A UVC camera or a video file paced like one. `negotiated` is what the device (or file) gives."""
 
     def __init__(self, config: OpenCVCameraConfig) -> None:
-        super().__init__(f"OpenCV camera {config.source}", config.format, resizes=True)
+        super().__init__(f"OpenCV camera {config.source}", config.format, resizes=True,
+                         reconnect_backoff_s=config.reconnect_backoff_s)
         self.config = config
         self._capture: cv2.VideoCapture | None = None
         self._period_s = 1.0 / config.fps
@@ -109,7 +130,7 @@ class OpenCVCamera(CameraSource):
 
     def _open_camera(self) -> None:
         source = self.config.source
-        self._capture = cv2.VideoCapture(source)
+        self._capture = cv2.VideoCapture(os.path.realpath(source) if isinstance(source, str) else source)
         if not self._capture.isOpened():
             raise UserError(f"no camera at {source!r} (OpenCV cannot open it); check that it is plugged in "
                             f"and not used by another program")
@@ -121,6 +142,9 @@ class OpenCVCamera(CameraSource):
             return
         ok, bgr = self._capture.read()
         if not ok:
+            self._check_present()
+            if (silent_s := self.silent_s()) > self.config.frame_timeout_s:
+                raise DeviceLost(f"no frame from {self.config.source} for {silent_s:.1f} s")
             raise OSError(f"camera {self.config.source!r} delivered no frame")
         if self._next == 0:  # the first frame is the truth where a backend reads back no size
             self._negotiated = CameraFormat(bgr.shape[1], bgr.shape[0], self._negotiated.fps)
@@ -132,6 +156,7 @@ class OpenCVCamera(CameraSource):
         if delay > 0:
             self._stop.wait(delay)
             return
+        self._check_present()
         overdue = int(-delay / self._period_s)
         if overdue * self._period_s > MAX_CATCH_UP_S:
             self._anchor_s -= delay
@@ -140,6 +165,11 @@ class OpenCVCamera(CameraSource):
             self._file_frame(decode=False)
         bgr = self._file_frame(decode=True)
         self._publish_frame(fit_rgb(bgr, self.config.width, self.config.height), now_us(), self._next - 1)
+
+    def _check_present(self) -> None:
+        """DeviceLost when the source is a path that no longer exists (an unplugged camera's by-id link)."""
+        if isinstance(self.config.source, str) and not os.path.exists(self.config.source):
+            raise DeviceLost(f"{self.config.source} vanished")
 
     def _file_frame(self, decode: bool) -> np.ndarray | None:
         """Move one frame on in the file (decoded when asked, else only grabbed) and on the schedule;

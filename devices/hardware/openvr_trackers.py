@@ -6,6 +6,11 @@ a valid pose, names them by serial number and maps serial → role (chest, left_
 
 A pose is 7 float32: translation x, y, z in metres, then the orientation quaternion in the order
 **w, x, y, z** (the order of this project's `vive_poses.json` and glove quaternions), with w ≥ 0.
+
+Device gone: SteamVR quits (a `VREvent_Quit`, acknowledged) or an OpenVR call raises `OpenVRError`. The
+shared reader (`ThreadedSource`) then shuts OpenVR down and calls `openvr.init` again with back-off until
+SteamVR is back, counting `reconnects`; trackers keep their roles by serial number (device indices are
+looked up afresh). A tracker that is switched off is not a lost device: its role is counted `missing`.
 """
 from __future__ import annotations
 
@@ -18,7 +23,14 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from touchanything.devices.errors import UserError
-from touchanything.devices.hardware.threaded_source import SourceCounters, ThreadedSource, now_us
+from touchanything.devices.hardware.threaded_source import (
+    DEFAULT_BACKOFF_S,
+    DeviceLost,
+    SourceCounters,
+    ThreadedSource,
+    check_backoff,
+    now_us,
+)
 from touchanything.devices.snapshot import TRACKER_ROLES
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -27,12 +39,15 @@ INSTALL_HINT = "OpenVR trackers need the `openvr` package: pip install 'touchany
 
 @dataclass(frozen=True)
 class OpenVRTrackersConfig:
-    """roles: tracker serial number (e.g. "LHR-1A2B3C4D") → role; rate_hz: polls per second."""
+    """roles: tracker serial number (e.g. "LHR-1A2B3C4D") → role; rate_hz: polls per second;
+    reconnect_backoff_s: (first, longest) wait between attempts to reach SteamVR again after it went away."""
 
     roles: dict[str, str]
     rate_hz: float = 90
+    reconnect_backoff_s: tuple[float, float] = DEFAULT_BACKOFF_S
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "reconnect_backoff_s", check_backoff(self.reconnect_backoff_s, "tracker"))
         if not self.roles:
             raise UserError("no Vive trackers configured; map each tracker serial to one of "
                             + ", ".join(TRACKER_ROLES))
@@ -118,7 +133,7 @@ class OpenVRTrackers(ThreadedSource[TrackerReading]):
     """Polls OpenVR at `rate_hz` and publishes the configured trackers' poses by role."""
 
     def __init__(self, config: OpenVRTrackersConfig) -> None:
-        super().__init__("Vive trackers")
+        super().__init__("Vive trackers", config.reconnect_backoff_s)
         self.config = config
         self._openvr: Any = None
         self._system: Any = None
@@ -150,8 +165,12 @@ class OpenVRTrackers(ThreadedSource[TrackerReading]):
             return
         self._due_s = max(self._due_s + 1.0 / self.config.rate_hz, now_s)
         openvr = self._openvr
-        poses = self._system.getDeviceToAbsoluteTrackingPose(
-            openvr.TrackingUniverseStanding, 0, openvr.k_unMaxTrackedDeviceCount)
+        try:
+            self._check_quit()
+            poses = self._system.getDeviceToAbsoluteTrackingPose(
+                openvr.TrackingUniverseStanding, 0, openvr.k_unMaxTrackedDeviceCount)
+        except openvr.OpenVRError as exc:
+            raise DeviceLost(f"OpenVR failed: {exc}") from None
         t_us = now_us()
         for index, pose in enumerate(poses):
             if pose.bPoseIsValid and index not in self._serials:
@@ -160,6 +179,15 @@ class OpenVRTrackers(ThreadedSource[TrackerReading]):
         by_role, unknown = poses_by_role(poses, trackers, self.config.roles)
         self._unknown = self._unknown | unknown
         self._publish(TrackerReading(by_role, t_us), t_us, missing=len(self.config.roles) - len(by_role))
+
+    def _check_quit(self) -> None:
+        """DeviceLost when SteamVR announced that it quits (the quit is acknowledged first)."""
+        openvr, event = self._openvr, self._openvr.VREvent_t()
+        while self._system.pollNextEvent(event):
+            if event.eventType == openvr.VREvent_Quit:
+                if (acknowledge := getattr(self._system, "acknowledgeQuit_Exiting", None)) is not None:
+                    acknowledge()  # (not in every OpenVR release)
+                raise DeviceLost("SteamVR quit")
 
     def _tracker_serial(self, index: int) -> str | None:
         """The serial number of device `index` when it is a generic tracker, else None."""

@@ -27,7 +27,8 @@ Subscriber = Callable[[Snapshot], None]
 
 @dataclass(frozen=True)
 class RigClockConfig:
-    """rate_hz: ticks per second. stale_after_ms: a sample older than this at a tick is not used."""
+    """rate_hz: ticks per second. stale_after_ms: a sample older than this at a tick is not used (nor any
+    sample of a source that is retrying a lost device: see `rig_inputs.build_snapshot`)."""
 
     rate_hz: float = 30.0
     stale_after_ms: float = 200.0

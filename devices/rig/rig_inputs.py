@@ -1,8 +1,10 @@
 """How each live source's latest reading becomes part of a Snapshot: a table of rig inputs, one per source.
 
 A `RigInput` names a source and says how its reading fills the Snapshot (`Fill`). At a tick every source's
-latest reading is checked: a reading older than the staleness limit is refused (the paper's strategy
-keeps the latest *valid* sample of every source) and the fill is given None, which records the absence:
+latest reading is checked: a reading older than the staleness limit, or any reading of a source whose
+device went away and is being retried (`retrying`), is refused (the paper's strategy keeps the latest
+*valid* sample of every source) and the fill is given None, which records the absence; when the device
+returns, its fresh readings are used again:
 
 - `camera_fill(view)`: `images[view]` = the RGB image; without a fresh one the view is left out of `images`.
 - `glove_fill(hand)`: the hand's row of `pressure_raw` and `imu_wxyz`, `glove_present[hand]` = True;
@@ -33,7 +35,8 @@ calibration bound."""
 
 class LatestSource(Protocol):
     """What the rig clock needs of a source: `latest()` is an object with `t_us` (host monotonic µs) or
-    None before the first sample; `status()` is its one-line dashboard status."""
+    None before the first sample; `status()` is its one-line dashboard status. A source may also have
+    `retrying` (True while its lost device is being reopened: its last sample is then not used)."""
 
     def latest(self) -> Any: ...
 
@@ -151,8 +154,9 @@ def fill_order(inputs: Sequence[RigInput]) -> list[RigInput]:
 
 def build_snapshot(inputs: Sequence[RigInput], frame_index: int, t_us: int, stale_after_us: int) -> Snapshot:
     """The Snapshot at `t_us` of `inputs` (in `fill_order`): each source's latest reading is used when it
-    is at most `stale_after_us` old; its status reads "ok, age 12 ms", "stale, age 850 ms (<source status>)"
-    or "no sample yet (<source status>)"."""
+    is at most `stale_after_us` old and the source is not `retrying` a lost device; its status reads
+    "ok, age 12 ms", "stale, age 850 ms (<source status>)" (also a young sample of a retrying source, whose
+    status then says "disconnected, retrying (…)") or "no sample yet (<source status>)"."""
     parts, status, ages = SnapshotParts(), {}, {}
     for rig_input in inputs:
         reading = rig_input.source.latest()
@@ -161,7 +165,7 @@ def build_snapshot(inputs: Sequence[RigInput], frame_index: int, t_us: int, stal
         else:
             age_us = max(t_us - reading.t_us, 0)
             ages[rig_input.name] = age_us / 1000
-            if age_us > stale_after_us:
+            if age_us > stale_after_us or getattr(rig_input.source, "retrying", False):
                 status[rig_input.name] = f"stale, age {age_us / 1000:.0f} ms ({rig_input.source.status()})"
                 reading = None
             else:
