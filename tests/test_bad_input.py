@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -15,6 +16,8 @@ from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.hdf5_convert import convert_trajectory
 from touchanything.devices.episodes.raw_episode import open_raw_episode
 from touchanything.devices.episodes.video_io import VideoWriter
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _lines(path):
@@ -178,3 +181,16 @@ def test_cli_prints_one_line_without_traceback(tmp_path, make):
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
     assert str(path) in proc.stderr
+
+
+def test_a_checkpoint_in_another_pickle_protocol_is_one_line_without_library_warnings(tmp_path, episode_dir):
+    import pickle
+
+    checkpoint = tmp_path / "best_model.pth"
+    checkpoint.write_bytes(pickle.dumps({"model_state_dict": {"w": 1}}, protocol=5))
+    proc = subprocess.run([sys.executable, "-m", "touchanything.app.cli", "replay", str(episode_dir), "--headless",
+                           "--checkpoint", str(checkpoint), "--config", str(ROOT / "models" / "nano" / "config.yaml")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [f"touchanything replay: error: {checkpoint}: not a readable PyTorch "
+                                                "checkpoint (UnpicklingError)"]

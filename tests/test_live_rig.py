@@ -69,6 +69,16 @@ def test_record_the_simulated_rig_and_replay_it(tmp_path, capsys):
     ("[clock]\nrate_hz = -1\n", "rig clock rate"),
     ("[hands]\nport = 14043\n[pose]\nfocal_px = 1\n", "[pose]"),
     ("not toml at all = = =\n", "not valid TOML"),
+    ("[hands]\nport = \"abc\"\n", "[hands] port: expected a whole number, got 'abc'"),
+    ("[hands]\nport = 1.5\n", "[hands] port: expected a whole number, got 1.5"),
+    ("[cameras.ego]\nkind = 'opencv'\nsource = 0\nloop = 1\n", "[cameras.ego] loop: expected true or false, got 1"),
+    ("[cameras.ego]\nkind = 'opencv'\nsource = [0]\n", "[cameras.ego] source: expected a whole number or text"),
+    ("[clock]\nrate_hz = 'fast'\n", "[clock] rate_hz: expected a number, got 'fast'"),
+    ("[model]\ndevice = 0\n", "[model] device: expected text, got 0"),
+    ("[gloves.left]\nport = 7\n", "[gloves.left] port: expected text"),
+    ("[gloves.left]\nport = 'x'\nreconnect_backoff_s = [1, 2, 3]\n",
+     "[gloves.left] reconnect_backoff_s: expected a list of 2 (a number, a number), got [1, 2, 3]"),
+    ("[hands]\nport = 99999\n", "Rokoko UDP port 99999 is out of range"),
 ])
 def test_scene_errors_are_one_clear_line(tmp_path, text, message):
     scene = tmp_path / "scene.toml"

@@ -13,6 +13,7 @@ from touchanything.viz.pressure_panel import (
     MAP_GAP,
     maps_width,
     pressure_maps,
+    put_text,
 )
 
 CELL = 7
@@ -81,3 +82,14 @@ def test_the_outline_follows_the_contact_region():
     assert rows.min() >= 8 * CELL - 2 and rows.max() <= 12 * CELL + 1
     assert columns.min() >= left + 8 * CELL - 2 and columns.max() <= left + 12 * CELL + 1
     assert (pressure_maps(grids, CELL, outline=measured, threshold=0.6) == plain).all()  # nothing above it
+
+
+@pytest.mark.parametrize("text", ["Ground Truth Pressure", "Predicted Pressure", "Prediction - Ground Truth"])
+def test_a_title_is_drawn_once_with_its_shadow_under_it(text):
+    image = np.full((40, 400, 3), 128, np.uint8)
+    put_text(image, text, (10, 25), 0.6)
+    light = np.flatnonzero((image > 200).all(axis=2).any(axis=0))
+    dark = np.flatnonzero((image < 60).all(axis=2).any(axis=0))
+    assert light.size and dark.size
+    assert light[-1] - 1 <= dark[-1] <= light[-1] + 2  # no stray glyph of a wider outline behind the text
+    assert light[0] - 1 <= dark[0] <= light[0] + 2

@@ -122,13 +122,20 @@ def test_busy_port_is_a_user_error_and_cleans_up():
 @pytest.mark.parametrize("config, message", [
     (RokokoConfig(host="no-such-host.invalid", port=0), "no-such-host.invalid:0: unknown host"),
     (RokokoConfig(host="192.0.2.1", port=0), "192.0.2.1:0: Cannot assign requested address"),
-    (RokokoConfig(port=70000), "port 70000 is out of range"),
-    (RokokoConfig(port=0, max_datagram_bytes=0), "max datagram size 0"),
-    (RokokoConfig(port=0, poll_s=0), "poll time must be positive"),
 ])
-def test_bad_options_are_user_errors(config, message):
+def test_an_address_that_cannot_be_bound_is_a_user_error(config, message):
     with pytest.raises(UserError, match=message):
         RokokoReceiver(config).connect()
+
+
+@pytest.mark.parametrize("settings, message", [
+    ({"port": 70000}, "port 70000 is out of range"),
+    ({"port": 0, "max_datagram_bytes": 0}, "max datagram size 0"),
+    ({"port": 0, "poll_s": 0}, "poll time must be positive"),
+])
+def test_bad_options_are_user_errors_when_the_config_is_made(settings, message):
+    with pytest.raises(UserError, match=message):
+        RokokoConfig(**settings)
 
 
 # ---- simulated sender ----------------------------------------------------------------------------------

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -97,6 +98,10 @@ def test_split_and_card(small_dataset):
     assert len(split["test_unseen"]) == len(unseen)
     assert (out / "dataset_card.md").read_text().startswith("# Simulated EgoTouch dataset")
     assert card["frames"] == 360 and sum(card["scenes"].values()) == 3
+    written = json.loads((out / "dataset_card.json").read_text())
+    for entry in written["episodes_list"]:  # relative to the dataset root: no machine paths
+        assert not Path(entry["path"]).is_absolute() and (out / entry["path"] / "chest.mp4").is_file()
+    assert str(out) not in (out / "dataset_card.json").read_text()
 
 
 def test_convert_moves_the_split_into_the_hdf5_root(small_dataset, tmp_path, capsys):

@@ -36,8 +36,11 @@ def draw_contact_outline(image: np.ndarray, grid: np.ndarray, cell: int, thresho
 
 def put_text(image: np.ndarray, text: str, origin: tuple[int, int], scale: float = 0.5,
              colour: tuple[int, int, int] = (255, 255, 255)) -> None:
-    """White text with a black outline (readable on any background)."""
-    cv2.putText(image, text, origin, FONT, scale, (0, 0, 0), 2, cv2.LINE_AA)
+    """Text with a black shadow one pixel down and right (readable on any background). Both are drawn with
+    the same thickness: OpenCV's glyph advance grows with the thickness, so a thicker "outline" would run
+    ahead of the text and show a stray letter at its end."""
+    x, y = origin
+    cv2.putText(image, text, (x + 1, y + 1), FONT, scale, (0, 0, 0), 1, cv2.LINE_AA)
     cv2.putText(image, text, origin, FONT, scale, colour, 1, cv2.LINE_AA)
 
 

@@ -1,5 +1,6 @@
 """`touchanything record --scene FILE --out DIR [--seconds S]`: the live rig's 30 Hz snapshots written as a
-raw EgoTouch episode folder (crash-safe: a killed recording replays up to its last second)."""
+raw EgoTouch episode folder (crash-safe: a killed recording replays up to its last second; the files are
+fsync'ed every `[recording] fsync_s` of the scene, 1 s by default, so a power loss loses about that much)."""
 from __future__ import annotations
 
 import argparse
@@ -20,8 +21,9 @@ def run(args: argparse.Namespace) -> int:
     from touchanything.app.sessions.scene_rig import LiveRig
     from touchanything.devices.rig.recorder import Recorder, RecorderConfig
 
-    recorder = Recorder(RecorderConfig(args.out))
-    rig = LiveRig(read_scene(args.scene))
+    scene = read_scene(args.scene)
+    recorder = Recorder(RecorderConfig(args.out, fsync_s=scene.recording.fsync_s))
+    rig = LiveRig(scene)
     clock = rig.start()
     try:
         recorder.start()

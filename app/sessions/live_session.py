@@ -87,7 +87,7 @@ class LiveSession(EngineSession):
         """Start a new recording, or stop the current one (its folder is complete and replayable)."""
         if self.recorder is None:
             folder = self.recordings_dir / "Live" / "session" / time.strftime("%Y%m%d_%H%M%S")
-            recorder = Recorder(RecorderConfig(folder))
+            recorder = Recorder(RecorderConfig(folder, fsync_s=self.rig.scene.recording.fsync_s))
             try:
                 recorder.start()
             except UserError as exc:

@@ -15,6 +15,8 @@
     [simulator]           episode = a recorded episode the simulated rig replays through the real
                           protocols (pty gloves, Rokoko UDP to [hands]; cameras are its video files in
                           [cameras]); link_dir for the gloves' serial links
+    [recording]           fsync_s = seconds between fsyncs of every file of a recording (1.0; 0: after every
+                          frame; false: never)
 
 Which kinds exist, and the config class of each, come from the device registry
 (`touchanything.devices.hardware.registry`), which the live rig uses to build the devices.
@@ -28,16 +30,26 @@ from pathlib import Path
 from typing import Any
 
 from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint
+from touchanything.app.sessions.scene_values import check_types
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.jq_glove import JQGloveConfig
 from touchanything.devices.hardware.openvr_trackers import OpenVRTrackersConfig
 from touchanything.devices.hardware.registry import CameraConfig, device_kind
 from touchanything.devices.hardware.rokoko_udp import RokokoConfig
+from touchanything.devices.rig.recorder import valid_fsync_s
 from touchanything.devices.rig.rig_clock import RigClockConfig
 from touchanything.devices.sim.device_emulator import SimulatedRigConfig
 from touchanything.devices.snapshot import HANDS, VIEW_NAMES
 
-SECTIONS = ("clock", "cameras", "gloves", "hands", "trackers", "pose", "model", "simulator")
+SECTIONS = ("clock", "cameras", "gloves", "hands", "trackers", "pose", "model", "simulator", "recording")
+
+
+@dataclass(frozen=True)
+class RecordingSettings:
+    """[recording] fsync_s: seconds between fsyncs of every file of a recording, what a power loss can lose
+    (0: after every frame; None, `false` in the scene file: never)."""
+
+    fsync_s: float | None = 1.0
 
 
 @dataclass(frozen=True)
@@ -51,6 +63,7 @@ class Scene:
     pose: dict[str, Any] = field(default_factory=dict)
     model: ModelChoice = field(default_factory=lambda: ModelChoice(default_checkpoint()))
     simulator: SimulatedRigConfig | None = None
+    recording: RecordingSettings = RecordingSettings()
 
 
 def read_scene(path: Path) -> Scene:
@@ -79,18 +92,21 @@ def read_scene(path: Path) -> Scene:
             trackers=_device("trackers", "trackers", table["trackers"], base, default="openvr")
             if "trackers" in table else None,
             pose=dict(table.get("pose", {})), model=_model(table.get("model", {}), base),
-            simulator=_simulator(table["simulator"], table.get("hands", {}), base) if "simulator" in table else None)
+            simulator=_simulator(table["simulator"], table.get("hands", {}), base) if "simulator" in table else None,
+            recording=_recording(table.get("recording", {})))
     except UserError as exc:
         raise UserError(f"{path}: {exc}") from None
 
 
 def _build(cls, section: str, settings: dict):
-    """cls(**settings), naming the section and the keys when a key is unknown or missing."""
+    """cls(**settings), naming the section and the key when a key is unknown, missing or of the wrong type
+    (the config's own checks then name impossible values)."""
     fields = dataclasses.fields(cls) if dataclasses.is_dataclass(cls) else ()
     missing = [f.name for f in fields if f.name not in settings
                and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
     if missing:
         raise UserError(f"[{section}] needs a {' and a '.join(missing)} setting")
+    check_types(cls, section, settings)
     try:
         return cls(**settings)
     except TypeError as exc:
@@ -144,3 +160,16 @@ def _simulator(settings: dict, hands: dict, base: Path) -> SimulatedRigConfig:
     receiver = RokokoConfig(**{k: v for k, v in hands.items() if k in ("host", "port")})
     return _build(SimulatedRigConfig, "simulator", {"rokoko_host": receiver.host, "rokoko_port": receiver.port,
                                                      **settings})
+
+
+def _recording(settings: dict) -> RecordingSettings:
+    """`fsync_s = false` is None (never); any other value than seconds ≥ 0 is one line naming the key."""
+    if not isinstance(settings, dict):
+        raise UserError(f"[recording] must be a table, got {settings!r}")
+    settings = dict(settings)
+    if settings.get("fsync_s", 1.0) is False:
+        settings["fsync_s"] = None
+    elif not valid_fsync_s(settings.get("fsync_s", 1.0)):
+        raise UserError(f"[recording] fsync_s: expected seconds ≥ 0 (0: after every frame) or false (never), "
+                        f"got {settings['fsync_s']!r}")
+    return _build(RecordingSettings, "recording", settings)

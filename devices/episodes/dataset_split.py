@@ -28,6 +28,8 @@ def read_split(path: Path) -> dict[str, list[Path]]:
         raise DataError(path, None, "file not found") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DataError(path, None, f"not a readable JSON file ({exc})") from None
+    except RecursionError:
+        raise DataError(path, None, "not a readable JSON file (nested too deeply)") from None
     if not isinstance(data, dict):
         raise DataError(path, None, f"expected an object with keys {', '.join(SPLIT_KEYS)}")
     split = {}
@@ -35,8 +37,26 @@ def read_split(path: Path) -> dict[str, list[Path]]:
         entries = data.get(key, [])
         if not isinstance(entries, list) or not all(isinstance(e, str) for e in entries):
             raise DataError(path, key, "expected a list of file paths")
+        for number, entry in enumerate(entries, start=1):
+            if problem := _path_problem(entry):
+                raise DataError(path, key, f"entry {number} is not a usable file path ({problem})")
         split[key] = [(path.parent / e) if not Path(e).is_absolute() else Path(e) for e in entries]
     return split
+
+
+def _path_problem(entry: str) -> str | None:
+    """Why a split entry can be no file's path (checking it would raise instead of saying "not found")."""
+    if not entry.strip():
+        return "empty"
+    if "\x00" in entry:
+        return "a NUL character"
+    try:
+        parts = [os.fsencode(part) for part in Path(entry).parts]
+    except UnicodeError:
+        return "not encodable as a file name"
+    if any(len(part) > 255 for part in parts) or len(os.fsencode(entry)) > 4095:
+        return "name too long"
+    return None
 
 
 def write_split(path: Path, split: dict[str, list[Path]], absolute: bool = False) -> None:
@@ -72,7 +92,7 @@ def quality_problem(path: Path, config: SplitConfig) -> str | None:
         with h5py.File(path, "r") as file:
             frames = int(file["metadata"].attrs["num_frames"])
             valid = np.stack([file[k][()] for k in WILOR_VALID_KEYS], axis=1).astype(bool)
-    except (OSError, KeyError, ValueError) as exc:
+    except (OSError, KeyError, ValueError, RuntimeError, TypeError) as exc:
         return f"unreadable ({exc})"
     if frames < config.min_frames:
         return f"{frames} frames < {config.min_frames}"

@@ -8,11 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.errors import DataError
+from touchanything.devices.errors import DataError, describe
 from touchanything.devices.snapshot import HANDS
 
 GRID_KEYS = ("left_pressure_grid", "right_pressure_grid")
 MAXIMA_KEYS = ("tactile_max_left", "tactile_max_right", "bend_max_left", "bend_max_right")
+SCALAR_KEYS = (*MAXIMA_KEYS, "grid_size", "num_frames", "separate_normalization", "normalized",
+               "baseline_corrected_left", "baseline_corrected_right")
+"""The scalars stored beside the grids (npz arrays, HDF5 `pressure` attributes): numbers or true/false."""
 
 
 @dataclass
@@ -21,6 +24,24 @@ class PressureFile:
 
     grids: np.ndarray
     attrs: dict = field(default_factory=dict)
+    problems: list[str] = field(default_factory=list)
+
+
+def scalar_attrs(found: dict) -> tuple[dict, list[str]]:
+    """The values of `found` that are single finite numbers or booleans, as Python scalars, and the names of
+    the known scalars (`SCALAR_KEYS`) that are not (other names of another kind are left out silently)."""
+    attrs, dropped = {}, []
+    for key, value in found.items():
+        try:
+            array = np.asarray(value)
+            ok = array.ndim == 0 and array.dtype.kind in "biuf" and bool(np.isfinite(array))
+        except (TypeError, ValueError):
+            ok = False
+        if ok:
+            attrs[key] = array.item()
+        elif key in SCALAR_KEYS:
+            dropped.append(key)
+    return attrs, dropped
 
 
 def _load_npz(path: Path) -> dict[str, np.ndarray]:
@@ -29,8 +50,11 @@ def _load_npz(path: Path) -> dict[str, np.ndarray]:
             return {key: data[key] for key in data.files}
     except FileNotFoundError:
         raise DataError(path, None, "file not found") from None
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise DataError(path, None, f"not a readable .npz file ({exc})") from None
+    except Exception as exc:  # zipfile, zlib and numpy's header parser raise a dozen types for damaged bytes
+        # (BadZipFile, zlib.error, NotImplementedError for a compression method, TokenError, MemoryError for a
+        # header claiming a huge shape, ...): each is the same "not readable" to the user
+        reason = str(exc).splitlines()[0] if str(exc).strip() else exc.__class__.__name__
+        raise DataError(path, None, f"not a readable .npz file ({reason})") from None
 
 
 def _require(path: Path, data: dict, key: str, ndim: int, kinds: str) -> np.ndarray:
@@ -52,8 +76,9 @@ def read_pressure_grids(path: Path) -> PressureFile:
             raise DataError(path, key, f"has shape {grid.shape}, expected (T, 21, 21)")
     if left.shape[0] != right.shape[0]:
         raise DataError(path, GRID_KEYS[1], f"has {right.shape[0]} frames but {GRID_KEYS[0]} has {left.shape[0]}")
-    attrs = {key: data[key].item() for key in data if key not in GRID_KEYS and data[key].ndim == 0}
-    return PressureFile(np.stack([left, right], axis=1).astype(np.float32), attrs)
+    attrs, dropped = scalar_attrs({key: value for key, value in data.items() if key not in GRID_KEYS})
+    problems = [describe(path, key, "expected a single number or true/false; ignored") for key in dropped]
+    return PressureFile(np.stack([left, right], axis=1).astype(np.float32), attrs, problems)
 
 
 def save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
@@ -114,11 +139,13 @@ def read_quality(path: Path) -> dict[str, float]:
         raise DataError(path, None, "file not found") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DataError(path, None, f"not a readable JSON file ({exc})") from None
+    except RecursionError:
+        raise DataError(path, None, "not a readable JSON file (nested too deeply)") from None
     ratios = {}
     for side in HANDS:
         try:
             ratios[side] = float(data["duplicate_frames"][side]["ratio"])
-        except (TypeError, KeyError, ValueError):
+        except (TypeError, KeyError, ValueError, OverflowError):
             ratios[side] = -1.0
     return ratios
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.episodes.jsonl import FieldProblems, read_jsonl
+from touchanything.devices.episodes.jsonl import FieldProblems, read_jsonl_lines
 from touchanything.devices.hand_pose import JOINTS_PER_HAND, hand_from_json
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 
@@ -71,18 +71,26 @@ class GloveStream:
                            None if stamps is None or len(stamps) < frames else stamps[:frames])
 
 
+def _hand(value: object) -> tuple[np.ndarray, bool]:
+    """`hand_from_json`, with numbers beyond float range (JSON integers are unbounded) an invalid hand."""
+    try:
+        return hand_from_json(value)
+    except OverflowError:
+        return np.zeros((JOINTS_PER_HAND, 3), np.float32), False
+
+
 def read_hands(path: Path) -> tuple[HandStream, list[str]]:
     """Read a WiLoR or Rokoko stream; a hand failing the official validity rule is invalid (zeros)."""
-    rows, problems = read_jsonl(path)
+    rows, line_numbers, problems = read_jsonl_lines(path)
     joints = np.zeros((len(rows), 2, JOINTS_PER_HAND, 3), np.float32)
     valid = np.zeros((len(rows), 2), bool)
     bad = FieldProblems(path)
     for i, row in enumerate(rows):
         for h, hand in enumerate(HANDS):
             value = (row or {}).get(f"{hand}_pos")
-            joints[i, h], valid[i, h] = hand_from_json(value)
+            joints[i, h], valid[i, h] = _hand(value)
             if value not in (None, []) and not valid[i, h]:
-                bad.add(f"{hand}_pos", i + 1, "not 21 finite joints within the official bounds; hand marked invalid")
+                bad.add(f"{hand}_pos", line_numbers[i], "not 21 finite joints within the official bounds; hand marked invalid")
     return HandStream(joints, valid), problems + bad.lines()
 
 
@@ -97,14 +105,14 @@ def hands_row(frame_index: int, joints: np.ndarray, valid: np.ndarray) -> dict:
 def _floats(value: object, size: int) -> np.ndarray | None:
     try:
         out = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None
     return out if out.shape == (size,) and np.all(np.isfinite(out)) else None
 
 
 def read_trackers(path: Path) -> tuple[TrackerStream, list[str]]:
     """Read `vive_poses.json`; a role that is missing or malformed gives 7 zeros and valid = False."""
-    rows, problems = read_jsonl(path)
+    rows, line_numbers, problems = read_jsonl_lines(path)
     poses = np.zeros((len(rows), len(TRACKER_ROLES), 7), np.float32)
     valid = np.zeros((len(rows), len(TRACKER_ROLES)), bool)
     bad = FieldProblems(path)
@@ -117,7 +125,7 @@ def read_trackers(path: Path) -> tuple[TrackerStream, list[str]]:
             trans = _floats(entry.get("trans") if isinstance(entry, dict) else None, 3)
             rot = _floats(entry.get("rot") if isinstance(entry, dict) else None, 4)
             if trans is None or rot is None:
-                bad.add(f"poses.{role}", i + 1, "expected trans[3] and rot[4] finite numbers")
+                bad.add(f"poses.{role}", line_numbers[i], "expected trans[3] and rot[4] finite numbers")
                 continue
             poses[i, r] = np.concatenate([trans, rot])
             valid[i, r] = True
@@ -145,7 +153,7 @@ def _glove_sample(entry: object) -> tuple[np.ndarray, np.ndarray] | None:
 
 def read_glove(path: Path) -> tuple[GloveStream, list[str]]:
     """Read `jq_pressure.json`; a malformed hand sample counts as absent in that frame."""
-    rows, problems = read_jsonl(path)
+    rows, line_numbers, problems = read_jsonl_lines(path)
     n = len(rows)
     raw = np.zeros((n, 2, 256), np.uint8)
     present = np.zeros((n, 2), bool)
@@ -154,14 +162,17 @@ def read_glove(path: Path) -> tuple[GloveStream, list[str]]:
     bad = FieldProblems(path)
     for i, row in enumerate(rows):
         row = row or {}
-        if isinstance(row.get("timestamp_us"), int):
-            stamps[i] = row["timestamp_us"]
+        stamp = row.get("timestamp_us")
+        if isinstance(stamp, int) and not isinstance(stamp, bool) and 0 <= stamp < 2**63:
+            stamps[i] = stamp
+        elif stamp is not None:
+            bad.add("timestamp_us", line_numbers[i], "expected an integer number of µs ≥ 0; glove times not used")
         for h, hand in enumerate(HANDS):
             if row.get(hand) is None:
                 continue
             sample = _glove_sample(row[hand])
             if sample is None:
-                bad.add(hand, i + 1, "expected raw[256] integers 0–255 and quat_wxyz[4]; sample dropped")
+                bad.add(hand, line_numbers[i], "expected raw[256] integers 0–255 and quat_wxyz[4]; sample dropped")
                 continue
             raw[i, h], quat[i, h] = sample
             present[i, h] = True

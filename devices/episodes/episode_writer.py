@@ -2,7 +2,10 @@
 
 JSONL rows are flushed as they are written and videos are fragmented MP4, so a writer that dies keeps
 everything up to its last second; `pressure_grids.npz` is computed from the glove stream at `close()`
-(or later with `write_grids_from_glove`, which `touchanything grids FOLDER` runs).
+(or later with `write_grids_from_glove`, which `touchanything grids FOLDER` runs). What the OS holds
+reaches the disk when the writer's owner calls `sync()` (every file fsync'ed, and the folder's directory
+when files were created since), and at `close()` when the writer is `durable`: that is what survives a
+crash of the machine (the recorder calls `sync()` on a cadence).
 
 Every stream keeps one entry per frame once it exists, so line numbers and video frames stay the frame
 index: a JSONL stream that first appears at frame k starts with k empty lines and gets an empty line for
@@ -13,6 +16,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import IO
 
@@ -22,7 +26,7 @@ from touchanything.devices.episodes.episode_files import write_pressure_grids
 from touchanything.devices.episodes.episode_streams import glove_row, hands_row, read_glove, trackers_row
 from touchanything.devices.episodes.jsonl import json_line
 from touchanything.devices.episodes.raw_episode import GLOVE_FILE, GRIDS_FILE, ROKOKO_FILE, VIDEO_FILES, VIVE_FILE, WILOR_FILE
-from touchanything.devices.episodes.video_io import VideoWriter
+from touchanything.devices.episodes.video_io import VideoWriter, fsync_fd, fsync_path
 from touchanything.devices.errors import DataError
 from touchanything.devices.snapshot import FRAME_PERIOD_US
 from touchanything.devices.tactile_layout import TactileLayout
@@ -49,32 +53,51 @@ def write_grids_from_glove(folder: Path, layout: TactileLayout | None = None,
     return _write_grids(Path(folder), stream.raw, layout or TactileLayout.default(), config)
 
 
-def _write_grids(folder: Path, raw: np.ndarray, layout: TactileLayout, config: TactileConfig) -> PressureGrids:
+def _write_grids(folder: Path, raw: np.ndarray, layout: TactileLayout, config: TactileConfig,
+                 sync: bool = False) -> PressureGrids:
+    """Write the grids to a partial file renamed into place; `sync`: fsync the file before the rename and the
+    folder after it (the grids are then on the disk, or absent, never a torn file). A failed fsync is raised
+    after the rename: the grids are still there to read."""
     grids = process_raw(raw, layout, config)
-    partial = folder / (GRIDS_FILE + ".partial.npz")
-    write_pressure_grids(partial, grids.grids, grids.baseline_applied, grids.tactile_max, grids.bend_max)
-    os.replace(partial, folder / GRIDS_FILE)
+    part = folder / (GRIDS_FILE + ".partial.npz")
+    write_pressure_grids(part, grids.grids, grids.baseline_applied, grids.tactile_max, grids.bend_max)
+    failure: OSError | None = None
+    if sync:
+        try:
+            fsync_path(part)
+        except OSError as exc:
+            failure = exc
+    os.replace(part, folder / GRIDS_FILE)
+    if failure is not None:
+        raise failure
+    if sync:
+        fsync_path(folder, directory=True)
     return grids
 
 
 class RawEpisodeWriter:
     """Writes one episode folder; streams appear when first given (earlier lines are left empty).
-    crf / preset: the H.264 quality and x264 speed preset of the videos."""
+    crf / preset: the H.264 quality and x264 speed preset of the videos. durable: `close()` fsyncs every
+    file and the folder (see `sync()`)."""
 
     def __init__(self, folder: Path, layout: TactileLayout | None = None, config: TactileConfig = TactileConfig(),
-                 crf: int = 20, preset: str = "veryfast") -> None:
+                 crf: int = 20, preset: str = "veryfast", durable: bool = False) -> None:
         self.folder = Path(folder)
+        created = [p for p in (self.folder, *self.folder.parents) if not p.exists()]
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise DataError(self.folder, None, f"cannot create the episode folder ({exc.strerror})") from None
         self.layout = layout or TactileLayout.default()
-        self.config, self.crf, self.preset = config, crf, preset
+        self.config, self.crf, self.preset, self.durable = config, crf, preset, durable
         self.frames = 0
         self._videos: dict[str, VideoWriter] = {}
         self._last_images: dict[str, np.ndarray] = {}
         self._streams: dict[str, IO[str]] = {}
         self._glove_raw: list[np.ndarray] = []
+        # directories whose entries changed since the last sync: the parents of the folders mkdir created
+        # (outermost first), then the folder itself whenever a file is created in it
+        self._new_entries: list[Path] = [p.parent for p in reversed(created)]
 
     def _line(self, name: str, row: dict | None) -> None:
         """Append `row` (None: an empty line) to a JSONL stream; an OSError names the file."""
@@ -84,6 +107,7 @@ class RawEpisodeWriter:
                 if row is None:
                     return
                 handle = self._streams[name] = open(self.folder / name, "w", buffering=1)
+                self._created()
                 handle.writelines("{}\n" for _ in range(self.frames))
             handle.write("{}\n" if row is None else json_line(row))
         except OSError as exc:
@@ -95,6 +119,7 @@ class RawEpisodeWriter:
         if video is None:
             video = self._videos[view] = VideoWriter(self.folder / VIDEO_FILES[view], crf=self.crf,
                                                                  preset=self.preset)
+            self._created()
             black = np.zeros_like(image, dtype=np.uint8)
             for _ in range(self.frames):
                 video.write(black)
@@ -124,11 +149,40 @@ class RawEpisodeWriter:
             self._glove_raw.append(np.zeros((2, 256), np.uint8))
         self.frames += 1
 
+    def _created(self) -> None:
+        if self.folder not in self._new_entries:
+            self._new_entries.append(self.folder)
+
+    def sync(self) -> None:
+        """fsync every file written so far (the videos' completed fragments, every JSONL line), then the
+        directories whose entries changed since the last sync (new files, new folders), so that all of it
+        survives a power loss. An OSError names the file."""
+        unborn = [video for video in self._videos.values() if not video.sync()]
+        for name, handle in self._streams.items():
+            try:
+                handle.flush()
+            except OSError as exc:
+                raise OSError(exc.errno, exc.strerror, str(self.folder / name)) from exc
+            fsync_fd(handle.fileno(), self.folder / name)
+        self._sync_entries()
+        if unborn:  # a video whose file FFmpeg has not created yet: its entry is synced by a later round
+            self._created()
+
+    def _sync_entries(self) -> None:
+        while self._new_entries:
+            fsync_path(self._new_entries[0], directory=True)
+            self._new_entries.pop(0)
+
     def close(self) -> PressureGrids | None:
         """Finish every video and stream (all of them, even when one fails: the first failure is raised
-        after the rest are closed and the grids written); writes `pressure_grids.npz` when there is glove data."""
+        after the rest are closed and the grids written); writes `pressure_grids.npz` when there is glove data.
+        A `durable` writer fsyncs each file as it closes it, the grids, and the directories."""
         failure: Exception | None = None
-        for finish in [video.close for video in self._videos.values()] + [h.close for h in self._streams.values()]:
+        finishers = [partial(video.close, sync=self.durable) for video in self._videos.values()]
+        finishers += [partial(self._close_stream, name, handle) for name, handle in self._streams.items()]
+        if self.durable:
+            finishers.append(self._sync_entries)  # after the files: each is synced as it closes
+        for finish in finishers:
             try:
                 finish()
             except Exception as exc:  # noqa: BLE001 - re-raised below, once everything else is closed
@@ -139,12 +193,20 @@ class RawEpisodeWriter:
             raise failure
         return grids
 
+    def _close_stream(self, name: str, handle: IO[str]) -> None:
+        try:
+            if self.durable and not handle.closed:
+                handle.flush()
+                fsync_fd(handle.fileno(), self.folder / name)
+        finally:
+            handle.close()
+
     def _close_grids(self) -> PressureGrids | None:
         if not self._glove_raw:
             return None
         raw = np.zeros((self.frames, 2, 256), np.uint8)
         raw[self.frames - len(self._glove_raw):] = np.stack(self._glove_raw)
-        return _write_grids(self.folder, raw, self.layout, self.config)
+        return _write_grids(self.folder, raw, self.layout, self.config, sync=self.durable)
 
     def __enter__(self) -> RawEpisodeWriter:
         return self

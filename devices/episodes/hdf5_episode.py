@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 
 from touchanything.devices.episodes.episode import Episode, align_note, synthetic_timestamps
-from touchanything.devices.episodes.episode_files import PressureFile
+from touchanything.devices.episodes.episode_files import PressureFile, scalar_attrs
 from touchanything.devices.episodes.episode_streams import HandStream, TrackerStream
 from touchanything.devices.errors import DataError, describe
 from touchanything.devices.hand_pose import hands_valid
@@ -23,17 +23,35 @@ WILOR_KEYS = ("hands/wilor_left_joint_xyz", "hands/wilor_right_joint_xyz")
 WILOR_VALID_KEYS = ("hands/wilor_left_valid", "hands/wilor_right_valid")
 GRID_KEYS = ("pressure/left_pressure_grid", "pressure/right_pressure_grid")
 MASK_KEYS = ("masks/glove_masks", "masks/glove_obj_ids", "masks/glove_valid_frames")
+H5_ERRORS = (OSError, RuntimeError, ValueError, KeyError, TypeError)
+"""What h5py raises for a damaged file (a bad checksum or filter, a broken link or header, a foreign type)."""
+
+
+def _why(exc: Exception) -> str:
+    return f"unreadable ({str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__})"
 
 
 class Hdf5Frames:
-    """FrameSource over an `images/*_color` dataset (T, H, W, 3) uint8 RGB."""
+    """FrameSource over an `images/*_color` dataset (T, H, W, 3) uint8 RGB. A frame that cannot be read (a
+    damaged chunk) is None, like a frame past the end, and the first one is added to `problems`."""
 
-    def __init__(self, file: h5py.File, dataset: h5py.Dataset) -> None:
+    def __init__(self, file: h5py.File, dataset: h5py.Dataset, problems: list[str] | None = None) -> None:
         self._file, self._dataset = file, dataset
         self.num_frames, self.height, self.width = dataset.shape[:3]
+        self._problems = problems if problems is not None else []
+        self.unreadable = 0
 
     def read(self, index: int) -> np.ndarray | None:
-        return self._dataset[index] if 0 <= index < self.num_frames else None
+        if not 0 <= index < self.num_frames:
+            return None
+        try:
+            return self._dataset[index]
+        except H5_ERRORS as exc:
+            self.unreadable += 1
+            if self.unreadable == 1:
+                self._problems.append(describe(self._file.filename, self._dataset.name.lstrip("/"),
+                                               f"frame {index}: {_why(exc)}; such frames are shown as missing"))
+            return None
 
     def close(self) -> None:
         if self._file.id.valid:
@@ -41,19 +59,23 @@ class Hdf5Frames:
 
 
 def _dataset(file: h5py.File, key: str, shape_tail: tuple, kinds: str) -> np.ndarray:
-    if key not in file:
-        raise DataError(file.filename, key, "missing dataset")
-    data = file[key]
-    if not isinstance(data, h5py.Dataset) or data.shape[1:] != shape_tail or data.dtype.kind not in kinds:
-        raise DataError(file.filename, key, f"has shape {getattr(data, 'shape', None)} and dtype "
-                        f"{getattr(data, 'dtype', None)}, expected (T, {', '.join(map(str, shape_tail))}) of kind {kinds!r}")
-    return data[()]
+    try:
+        if key not in file:
+            raise DataError(file.filename, key, "missing dataset")
+        data = file[key]
+        if (not isinstance(data, h5py.Dataset) or data.ndim != len(shape_tail) + 1 or data.shape[1:] != shape_tail
+                or data.dtype.kind not in kinds):
+            raise DataError(file.filename, key, f"has shape {getattr(data, 'shape', None)} and dtype "
+                            f"{getattr(data, 'dtype', None)}, expected (T, {', '.join(map(str, shape_tail))}) of kind {kinds!r}")
+        return data[()]
+    except H5_ERRORS as exc:
+        raise DataError(file.filename, key, _why(exc)) from None
 
 
 def _read(problems: list[str], file: h5py.File, key: str, shape_tail: tuple, kinds: str, optional: bool = False):
-    if optional and key not in file:
-        return None
     try:
+        if optional and key not in file:
+            return None
         return _dataset(file, key, shape_tail, kinds)
     except DataError as exc:
         problems.append(str(exc))
@@ -63,13 +85,17 @@ def _read(problems: list[str], file: h5py.File, key: str, shape_tail: tuple, kin
 def _images(problems: list[str], file: h5py.File) -> dict[str, Hdf5Frames]:
     views = {}
     for view, key in IMAGE_KEYS.items():
-        data = file.get(key)
+        try:
+            data = file.get(key)
+        except H5_ERRORS as exc:
+            problems.append(describe(file.filename, key, _why(exc)))
+            continue
         if data is None:
             problems.append(describe(file.filename, key, "missing dataset"))
         elif not isinstance(data, h5py.Dataset) or data.ndim != 4 or data.shape[3] != 3 or data.dtype != np.uint8:
             problems.append(describe(file.filename, key, f"has shape {getattr(data, 'shape', None)}, expected (T, H, W, 3) uint8"))
         else:
-            views[view] = Hdf5Frames(file, data)
+            views[view] = Hdf5Frames(file, data, problems)
     return views
 
 
@@ -77,22 +103,48 @@ def _pressure(problems: list[str], file: h5py.File) -> PressureFile | None:
     grids = [_read(problems, file, key, (21, 21), "f") for key in GRID_KEYS]
     if any(g is None for g in grids):
         return None
-    if grids[0].shape[0] != grids[1].shape[0]:
-        problems.append(describe(file.filename, GRID_KEYS[1], "frame count differs from the left grid"))
+    if not _same_length(problems, file, dict(zip(GRID_KEYS, grids))):
         return None
-    attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in file["pressure"].attrs.items()}
+    try:
+        found = dict(file["pressure"].attrs.items())
+    except H5_ERRORS as exc:
+        problems.append(describe(file.filename, "pressure", f"attributes {_why(exc)}"))
+        found = {}
+    attrs, dropped = scalar_attrs(found)
+    if dropped:
+        problems.append(describe(file.filename, "pressure", f"attribute(s) {', '.join(dropped)} not a number or "
+                                 "true/false; ignored"))
     return PressureFile(np.stack(grids, axis=1).astype(np.float32), attrs)
 
 
+def _same_length(problems: list[str], file: h5py.File, arrays: dict[str, np.ndarray]) -> bool:
+    """True when the datasets of one stream hold as many frames each; else a problem naming them."""
+    if len({len(a) for a in arrays.values()}) <= 1:
+        return True
+    problems.append(describe(file.filename, None, "frame counts differ within one stream ("
+                             + ", ".join(f"{k} {len(a)}" for k, a in arrays.items()) + "); stream not read"))
+    return False
+
+
+def _optional(file: h5py.File, keys: tuple) -> bool:
+    """An optional stream is absent without a problem only when none of its datasets is there."""
+    try:
+        return not any(key in file for key in keys)
+    except H5_ERRORS:
+        return False
+
+
 def _hands(problems: list[str], file: h5py.File, keys: tuple, valid_keys: tuple | None) -> HandStream | None:
-    joints = [_read(problems, file, key, (21, 3), "f", optional=valid_keys is None) for key in keys]
-    if any(j is None for j in joints) or joints[0].shape[0] != joints[1].shape[0]:
+    optional = valid_keys is None and _optional(file, keys)
+    joints = [_read(problems, file, key, (21, 3), "f", optional=optional) for key in keys]
+    if any(j is None for j in joints) or not _same_length(problems, file, dict(zip(keys, joints))):
         return None
     joints = np.stack(joints, axis=1).astype(np.float32)
     valid = hands_valid(joints) & np.any(joints != 0, axis=(-1, -2))
     if valid_keys is not None:
         flags = [_read(problems, file, key, (), "iub") for key in valid_keys]
-        if any(f is None or len(f) != len(joints) for f in flags):
+        if any(f is None for f in flags) or not _same_length(
+                problems, file, {"/".join(keys): joints, **dict(zip(valid_keys, flags))}):
             return None
         valid &= np.stack(flags, axis=1).astype(bool)
     joints[~valid] = 0.0
@@ -100,11 +152,31 @@ def _hands(problems: list[str], file: h5py.File, keys: tuple, valid_keys: tuple 
 
 
 def _trackers(problems: list[str], file: h5py.File) -> TrackerStream | None:
-    poses = [_read(problems, file, key, (7,), "f", optional=True) for key in TRACKER_KEYS]
-    if any(p is None for p in poses) or len({len(p) for p in poses}) != 1:
+    optional = _optional(file, TRACKER_KEYS)
+    poses = [_read(problems, file, key, (7,), "f", optional=optional) for key in TRACKER_KEYS]
+    if any(p is None for p in poses) or not _same_length(problems, file, dict(zip(TRACKER_KEYS, poses))):
         return None
     poses = np.stack(poses, axis=1).astype(np.float32)
     return TrackerStream(poses, np.all(np.isfinite(poses), axis=-1) & np.any(poses != 0, axis=-1))
+
+
+def _metadata(problems: list[str], file: h5py.File) -> dict:
+    try:
+        return dict(file["metadata"].attrs.items()) if "metadata" in file else {}
+    except H5_ERRORS as exc:
+        problems.append(describe(file.filename, "metadata", f"attributes {_why(exc)}"))
+        return {}
+
+
+def _fps(problems: list[str], path: Path, value) -> float:
+    try:
+        fps = float(np.asarray(value).item())
+    except (TypeError, ValueError):
+        fps = float("nan")
+    if not (np.isfinite(fps) and 0 < fps <= 1000):
+        problems.append(describe(path, "metadata", f"fps {value!r} is not a frame rate; 30 used"))
+        return 30.0
+    return fps
 
 
 def open_hdf5_episode(path: Path) -> Episode:
@@ -114,7 +186,7 @@ def open_hdf5_episode(path: Path) -> Episode:
         raise DataError(path, None, "file not found")
     try:
         file = h5py.File(path, "r")
-    except OSError as exc:
+    except H5_ERRORS as exc:
         raise DataError(path, None, f"not a readable HDF5 file ({exc})") from None
     problems: list[str] = []
     views = _images(problems, file)
@@ -131,7 +203,7 @@ def open_hdf5_episode(path: Path) -> Episode:
         problems.append(describe(path, None, note))
     stamps = _read(problems, file, "timestamps", (), "i", optional=True)
     stamps = stamps[:frames].astype(np.int64) if stamps is not None and len(stamps) >= frames else synthetic_timestamps(frames)
-    metadata = file["metadata"].attrs if "metadata" in file else {}
+    metadata = _metadata(problems, file)
     task = str(metadata.get("task_name", path.parent.name))
     if pressure is not None:
         pressure.grids = pressure.grids[:frames]
@@ -140,7 +212,7 @@ def open_hdf5_episode(path: Path) -> Episode:
     return Episode(
         path=path, scene=path.parent.parent.name, task=task,
         trajectory_id=str(metadata.get("trajectory_id", path.stem)), num_frames=frames, views=views,
-        timestamps_us=stamps, fps=float(metadata.get("fps", 30)),
+        timestamps_us=stamps, fps=_fps(problems, path, metadata.get("fps", 30)),
         wilor=wilor and wilor.fit(frames), rokoko=rokoko and rokoko.fit(frames),
         trackers=trackers and trackers.fit(frames), pressure=pressure, problems=problems,
     )

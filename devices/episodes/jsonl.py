@@ -1,6 +1,10 @@
 """JSON-lines files: one object per line, the line number is the frame index (blank lines count).
 
 A broken line never shifts later frames: it becomes an empty row and a problem naming its line number.
+Lines that were merged (a lost newline) or split (a stray newline), or lost outright, would shift every
+later line; each row's own `frame_index` (the 0-based frame number, equal to the line number in an intact
+file) puts it back in place. A row's index is trusted only when the next row's index agrees with it, so one
+corrupted number moves nothing. Every such disagreement is a problem line.
 """
 from __future__ import annotations
 
@@ -9,9 +13,19 @@ from pathlib import Path
 
 from touchanything.devices.errors import DataError, describe
 
+MAX_GAP = 1_000_000
+"""A `frame_index` further ahead of the line order than this (about 9 hours at 30 fps) is not followed."""
+TAIL_GAP = 30
+"""The last line's index is followed when it skips at most this many frames (1 s) past the line order."""
 
-def read_jsonl(path: Path) -> tuple[list[dict | None], list[str]]:
-    """Rows (None for blank or broken lines) and the problems found, one line each."""
+
+def _frame_index(row: dict | None) -> int | None:
+    value = row.get("frame_index") if row is not None else None
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
+
+
+def _parse(path: Path) -> tuple[list[dict | None], list[str]]:
+    """One row per line (None for blank or broken lines) and the problems found, one line each."""
     rows: list[dict | None] = []
     problems: list[str] = []
     try:
@@ -21,23 +35,76 @@ def read_jsonl(path: Path) -> tuple[list[dict | None], list[str]]:
     except OSError as exc:
         raise DataError(path, None, f"cannot open ({exc.strerror})") from None
     with handle:
-        for number, line in enumerate(handle, start=1):
-            text = line.strip()
-            if not text:
-                rows.append(None)
-                continue
-            try:
-                obj = json.loads(text)
-            except (UnicodeDecodeError, ValueError) as exc:
-                reason = exc.msg if isinstance(exc, json.JSONDecodeError) else "not UTF-8 text"
-                problems.append(describe(path, f"line {number}", f"invalid JSON ({reason}); frame left empty"))
-                rows.append(None)
-                continue
-            if not isinstance(obj, dict):
-                problems.append(describe(path, f"line {number}", "not a JSON object; frame left empty"))
-                obj = None
-            rows.append(obj)
+        try:
+            lines = list(handle)
+        except OSError as exc:
+            raise DataError(path, None, f"cannot read ({exc.strerror})") from None
+    for number, line in enumerate(lines, start=1):
+        text = line.strip()
+        if not text:
+            rows.append(None)
+            continue
+        try:
+            obj = json.loads(text)
+        except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+            reason = exc.msg if isinstance(exc, json.JSONDecodeError) else (
+                "nested too deeply" if isinstance(exc, RecursionError) else "not UTF-8 text")
+            problems.append(describe(path, f"line {number}", f"invalid JSON ({reason}); frame left empty"))
+            rows.append(None)
+            continue
+        if not isinstance(obj, dict):
+            problems.append(describe(path, f"line {number}", "not a JSON object; frame left empty"))
+            obj = None
+        rows.append(obj)
     return rows, problems
+
+
+def _trusted(indices: list[int | None], i: int) -> bool:
+    """Line i's frame index is believed: the next line holding an index is as many frames after it as it is
+    lines after it; for the last such line, its index follows the previous one's by at most `TAIL_GAP`
+    frames more than the lines between them."""
+    for j in range(i + 1, len(indices)):
+        if indices[j] is not None:
+            return indices[j] - indices[i] == j - i
+    for j in range(i - 1, -1, -1):
+        if indices[j] is not None:
+            return indices[j] < indices[i] <= indices[j] + (i - j) + TAIL_GAP
+    return False
+
+
+def read_jsonl(path: Path) -> tuple[list[dict | None], list[str]]:
+    """Rows by frame (None for blank, broken or missing lines) and the problems found, one line each."""
+    rows, _, problems = read_jsonl_lines(path)
+    return rows, problems
+
+
+def read_jsonl_lines(path: Path) -> tuple[list[dict | None], list[int], list[str]]:
+    """`read_jsonl` plus each frame's line number in the file (for problem lines; 0 where no line is)."""
+    lines, problems = _parse(path)
+    indices = [_frame_index(row) for row in lines]
+    frames: dict[int, dict | None] = {}
+    numbers: dict[int, int] = {}
+    frame = 0
+    for i, (row, index) in enumerate(zip(lines, indices)):
+        number = i + 1
+        if index is not None and index != frame:
+            if 0 <= index <= frame + MAX_GAP and _trusted(indices, i):
+                problems.append(describe(path, f"line {number}", f"frame_index {index} but the line order gives "
+                                         f"{frame} (lines lost, merged or split before it); from here on frames "
+                                         "follow frame_index"))
+                frame = index
+            else:
+                problems.append(describe(path, f"line {number}", f"frame_index {index} disagrees with the line order "
+                                         f"({frame}); kept in line order"))
+        if frames.get(frame) is None:
+            frames[frame] = row
+            numbers[frame] = number
+        elif row is not None:
+            problems.append(describe(path, f"line {number}", f"frame {frame} was already read from an earlier line; "
+                                     "line ignored"))
+        frame += 1
+    count = max(frames, default=-1) + 1
+    return [frames.get(i) for i in range(count)], [numbers.get(i, 0) for i in range(count)], problems
 
 
 def json_line(row: dict) -> str:

@@ -74,6 +74,8 @@ def open_raw_episode(folder: Path) -> Episode:
         if (folder / name).exists() and (reader := _try(problems, VideoReader, folder / name)) is not None:
             views[view] = reader
     pressure = _try(problems, read_pressure_grids, folder / GRIDS_FILE) if (folder / GRIDS_FILE).exists() else None
+    if pressure is not None:
+        problems.extend(pressure.problems)
     wilor = _stream(problems, folder, WILOR_FILE, read_hands)
     rokoko = _stream(problems, folder, ROKOKO_FILE, read_hands)
     trackers = _stream(problems, folder, VIVE_FILE, read_trackers)

@@ -1,7 +1,9 @@
 """Video files through PyAV: RGB frames in memory, random access by frame index, crash-safe H.264 writing."""
 from __future__ import annotations
 
+import errno
 import itertools
+import os
 from collections.abc import Iterator
 from fractions import Fraction
 from pathlib import Path
@@ -12,6 +14,8 @@ import numpy as np
 
 from touchanything.devices.errors import DataError
 
+MAX_FPS = 240
+"""A frame rate guessed from a damaged header above this is not believed (30 is used)."""
 SEEK_AHEAD = 45
 """Decode forward instead of seeking when the wanted frame is at most this many frames ahead."""
 
@@ -40,19 +44,35 @@ class VideoReader:
             if not self._container.streams.video:
                 raise DataError(self.path, None, "no video stream in the file")
             self._stream = self._container.streams.video[0]
+            if self._stream.codec_context is None or not (self._stream.codec_context.width > 0
+                                                          and self._stream.codec_context.height > 0):
+                raise DataError(self.path, None, "unreadable video (no picture size: the file's header is damaged)")
             self._stream.thread_type = "AUTO"
-            self.fps = float(self._stream.average_rate or self._stream.guessed_rate or 30)
+            guessed = float(self._stream.guessed_rate or 0)
+            self.fps = float(self._stream.average_rate or (guessed if 1 <= guessed <= MAX_FPS else 30))
             self.width = self._stream.codec_context.width
             self.height = self._stream.codec_context.height
             self.num_frames = self._count_packets()
-        except av.error.FFmpegError as exc:
-            raise DataError(self.path, None, f"unreadable video ({exc.strerror or exc})") from None
+        except DataError:
+            self._container.close()
+            raise
+        except (av.error.FFmpegError, AttributeError, IndexError, ValueError, ZeroDivisionError) as exc:
+            if hasattr(self, "_container"):
+                self._container.close()
+            reason = getattr(exc, "strerror", None) or str(exc) or exc.__class__.__name__
+            raise DataError(self.path, None, f"unreadable video ({reason})") from None
         self._start = self._stream.start_time or 0
         self._decoder: Iterator[av.VideoFrame] | None = None
         self._next = 0
 
     def _count_packets(self) -> int:
-        count = sum(1 for packet in self._container.demux(self._stream) if packet.size)
+        """Packets up to the end, or up to damage that stops the demuxer (what is before it stays readable)."""
+        count = 0
+        try:
+            for packet in self._container.demux(self._stream):
+                count += 1 if packet.size else 0
+        except av.error.FFmpegError:
+            pass
         self._container.seek(0, stream=self._stream)
         return count
 
@@ -91,7 +111,7 @@ class VideoReader:
                 self._next = found + 1
                 if found >= index:
                     return to_rgb(frame)
-        except av.error.FFmpegError:
+        except (av.error.FFmpegError, ValueError, cv2.error):  # damage past which nothing decodes
             pass
         self._decoder = None
         return None
@@ -118,6 +138,8 @@ class VideoWriter:
 
     `flush_packets` hands each fragment to the OS as soon as it is complete; without it FFmpeg keeps up to
     32 KiB in its own buffer, which a killed process loses (a small or still picture loses seconds).
+    `sync()` asks the OS to put what it holds on the disk (fsync), so the completed fragments also survive
+    a crash of the machine; `close(sync=True)` does it after the last fragment.
     """
 
     def __init__(self, path: Path, fps: int = 30, crf: int = 20, preset: str = "veryfast") -> None:
@@ -125,6 +147,7 @@ class VideoWriter:
         self.fps, self.crf, self.preset = fps, crf, preset
         self._container: av.container.OutputContainer | None = None
         self._stream = None
+        self._sync_fd: int | None = None
         self.frames_written = 0
 
     def _open(self, width: int, height: int) -> None:
@@ -145,16 +168,62 @@ class VideoWriter:
             self._container.mux(packet)
         self.frames_written += 1
 
-    def close(self) -> None:
+    def sync(self) -> bool:
+        """fsync the file: every fragment FFmpeg has handed to the OS is on the disk when this returns (the
+        fragment being encoded is not: it is written when complete). FFmpeg owns the file's descriptor, so
+        this syncs through a read-only one of its own (Linux syncs the file, whichever descriptor names it).
+        False when there is no file yet: FFmpeg creates it with the encoder's first packet, some frames
+        after the first `write`."""
         if self._container is None:
-            return
-        for packet in self._stream.encode():
-            self._container.mux(packet)
-        self._container.close()
-        self._container = None
+            return False
+        if self._sync_fd is None:
+            try:
+                self._sync_fd = os.open(self.path, os.O_RDONLY)
+            except FileNotFoundError:
+                return False
+        fsync_fd(self._sync_fd, self.path)
+        return True
+
+    def close(self, sync: bool = False) -> None:
+        """Write the last fragment and close the file; `sync`: fsync it after (see `sync()`)."""
+        try:
+            if self._container is None:
+                return
+            for packet in self._stream.encode():
+                self._container.mux(packet)
+            self._container.close()
+            self._container = None
+            if sync:
+                fsync_path(self.path)
+        finally:
+            if self._sync_fd is not None:
+                os.close(self._sync_fd)
+                self._sync_fd = None
 
     def __enter__(self) -> VideoWriter:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def fsync_fd(fd: int, path: Path) -> None:
+    """os.fsync(fd); an OSError names `path`. EINVAL (a special file such as /dev/null, which has nothing to
+    put on a disk) is not an error."""
+    try:
+        os.fsync(fd)
+    except OSError as exc:
+        if exc.errno != errno.EINVAL:
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+
+
+def fsync_path(path: Path, directory: bool = False) -> None:
+    """fsync a file by name, or a directory (its entries: files created in it survive a power loss)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if directory else 0))
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, str(path)) from exc
+    try:
+        fsync_fd(fd, path)
+    finally:
+        os.close(fd)

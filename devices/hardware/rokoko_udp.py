@@ -39,6 +39,15 @@ class RokokoConfig:
     socket_buffer_bytes: int = 4 * 1024 * 1024
     poll_s: float = 0.1
 
+    def __post_init__(self) -> None:
+        """One clear UserError per bad option, when the config is made (a scene file is read)."""
+        if not 0 <= self.port <= 65535:
+            raise UserError(f"Rokoko UDP port {self.port} is out of range; choose 0–65535 (Studio sends to 14043)")
+        if not 1 <= self.max_datagram_bytes <= UDP_MAX_PAYLOAD:
+            raise UserError(f"Rokoko max datagram size {self.max_datagram_bytes} must be 1–{UDP_MAX_PAYLOAD} bytes")
+        if not self.poll_s > 0:
+            raise UserError(f"Rokoko receive poll time must be positive, got {self.poll_s}")
+
 
 @dataclass(frozen=True)
 class RokokoReading:
@@ -57,16 +66,6 @@ class RokokoCounters(SourceCounters):
     malformed: int = 0
     oversized: int = 0
     no_hand: int = 0
-
-
-def check_config(config: RokokoConfig) -> None:
-    """One clear UserError per bad option."""
-    if not 0 <= config.port <= 65535:
-        raise UserError(f"Rokoko UDP port {config.port} is out of range; choose 0–65535 (Studio sends to 14043)")
-    if not 1 <= config.max_datagram_bytes <= UDP_MAX_PAYLOAD:
-        raise UserError(f"Rokoko max datagram size {config.max_datagram_bytes} must be 1–{UDP_MAX_PAYLOAD} bytes")
-    if not config.poll_s > 0:
-        raise UserError(f"Rokoko receive poll time must be positive, got {config.poll_s}")
 
 
 def bind_socket(config: RokokoConfig) -> socket.socket:
@@ -119,8 +118,7 @@ class RokokoReceiver(ThreadedSource[RokokoReading]):
         return host, port
 
     def _open(self) -> None:
-        """Check the options and bind the socket; UserError for a bad option or a busy/bad address."""
-        check_config(self.config)
+        """Bind the socket; UserError for a busy or bad address."""
         self._buffer = bytearray(max(MIN_RECEIVE_BUFFER, self.config.max_datagram_bytes + 1))
         self._last_problem = ""
         self._socket = bind_socket(self.config)

@@ -15,14 +15,21 @@ turns each Snapshot into an `EpisodeFrame` for `RawEpisodeWriter`:
 `stop()` writes what is queued, closes the files and computes `pressure_grids.npz` from the glove stream.
 Crash safety is the writer's: JSONL rows are flushed per row and the videos are fragmented MP4, so a
 recording whose process dies keeps everything but its last second (the grids are then missing:
-`touchanything grids FOLDER` computes them from `jq_pressure.json`). A writer error (disk full,
-permission) stops the writing; the files are still closed, the error shows in `status()` and `stop()`
-raises it as a UserError, and everything written before it stays readable.
+`touchanything grids FOLDER` computes them from `jq_pressure.json`). Against a crash of the machine (power
+loss, kernel panic) the writer thread fsyncs every file of the recording and, when files or folders were
+created, their directories, every `fsync_s` seconds (`RecorderConfig.fsync_s`, default 1 s; 0: after every
+frame; None: never) and at `stop()`, so a power loss loses at most the last `fsync_s` of each stream plus
+the video fragment being encoded. A sync falls due after a frame is written, or while no frame comes
+(the writer waits for the queue only until then). A writer error (disk full, permission, a failed fsync)
+stops the writing; the files are still closed, the error shows in `status()` and `stop()` raises it as a
+UserError, and everything written before it stays readable.
 """
 from __future__ import annotations
 
+import math
 import queue
 import threading
+import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -44,14 +51,26 @@ LIVE_PRESET = "ultrafast"
 @dataclass(frozen=True)
 class RecorderConfig:
     """folder: the episode folder to create (`<root>/<Scene>/<task>/<trajectory_id>` to be found by the
-    dataset tools). queue_frames: Snapshots waiting for the writer before new ones are dropped."""
+    dataset tools). queue_frames: Snapshots waiting for the writer before new ones are dropped.
+    fsync_s: seconds between fsyncs of every file of the recording (0: after every frame; None: never, the
+    OS writes back when it chooses, about 30 s on Linux)."""
 
     folder: Path
     queue_frames: int = 60
+    fsync_s: float | None = 1.0
 
     def __post_init__(self) -> None:
         if self.queue_frames < 1:
             raise UserError(f"recorder queue must hold at least 1 frame, got {self.queue_frames}")
+        if not valid_fsync_s(self.fsync_s):
+            raise UserError(f"recorder fsync_s must be a number of seconds ≥ 0 (0: after every frame) or None "
+                            f"(never), got {self.fsync_s!r}")
+
+
+def valid_fsync_s(value: object) -> bool:
+    """None, or a finite number of seconds ≥ 0 (not a bool)."""
+    return value is None or (isinstance(value, int | float) and not isinstance(value, bool)
+                             and math.isfinite(value) and value >= 0)
 
 
 @dataclass(frozen=True)
@@ -117,7 +136,7 @@ class Recorder:
         folder = Path(self.config.folder)
         if folder.is_dir() and is_raw_episode(folder):
             raise UserError(f"{folder} already holds a recording; choose a new folder")
-        writer = RawEpisodeWriter(folder, preset=LIVE_PRESET)
+        writer = RawEpisodeWriter(folder, preset=LIVE_PRESET, durable=self.config.fsync_s is not None)
         with self._lock:
             self._counters, self._error = RecorderCounters(), None
             self._queue, self._accepting = queue.Queue(maxsize=self.config.queue_frames), True
@@ -181,22 +200,49 @@ class Recorder:
             return 0
 
     def _run(self, writer: RawEpisodeWriter) -> None:
-        """Writer thread: write each queued Snapshot until `_STOP`, then close the episode."""
-        while (snapshot := self._queue.get()) is not _STOP:
-            if self._error is not None:
-                self._count(failed=1)
-                continue
+        """Writer thread: write each queued Snapshot until `_STOP`, fsyncing every `fsync_s` seconds while
+        something is unsynced (also when no Snapshot comes), then close the episode (fsyncing it)."""
+        every = self.config.fsync_s
+        last_sync, unsynced = time.monotonic(), False
+        while True:
+            syncing = every is not None and unsynced and self._error is None  # no syncs after an error
+            wait = max(0.0, last_sync + every - time.monotonic()) if syncing else None
             try:
-                writer.write(episode_frame(snapshot))
-            except Exception as exc:  # noqa: BLE001 - any writer failure is kept, shown and raised by stop()
-                self._fail(exc)
-                self._count(failed=1)
-                continue
-            self._count(written=1)
+                snapshot = self._queue.get(timeout=wait)
+            except queue.Empty:
+                snapshot = None  # a sync is due and no Snapshot came
+            if snapshot is _STOP:
+                break
+            if snapshot is not None:
+                if self._error is not None:
+                    self._count(failed=1)
+                    continue
+                try:
+                    self._write_frame(writer, snapshot)
+                except Exception as exc:  # noqa: BLE001 - any writer failure is kept, shown and raised by stop()
+                    self._fail(exc)
+                    self._count(failed=1)
+                    continue
+                self._count(written=1)
+                unsynced = True
+            if every is not None and unsynced and self._error is None and time.monotonic() - last_sync >= every:
+                try:
+                    self._sync(writer)
+                except Exception as exc:  # noqa: BLE001 - as above
+                    self._fail(exc)
+                last_sync, unsynced = time.monotonic(), False
         try:
             writer.close()
         except Exception as exc:  # noqa: BLE001 - as above
             self._fail(exc)
+
+    def _write_frame(self, writer: RawEpisodeWriter, snapshot: Snapshot) -> None:
+        """Writer thread: one Snapshot into the episode (handed to the OS, not yet synced)."""
+        writer.write(episode_frame(snapshot))
+
+    def _sync(self, writer: RawEpisodeWriter) -> None:
+        """Writer thread: fsync every file and the new directory entries."""
+        writer.sync()
 
     def _count(self, written: int = 0, failed: int = 0) -> None:
         with self._lock:

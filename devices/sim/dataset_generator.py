@@ -71,7 +71,7 @@ def simulate_dataset(out: Path, config: SimulationConfig,
                 on_episode and on_episode(stats)
     seconds = time.perf_counter() - started
     write_split(Path(out), results, config.seed)
-    card = dataset_card(results, config, seconds)
+    card = dataset_card(results, config, seconds, Path(out))
     (Path(out) / CARD_JSON).write_text(json.dumps(card, indent=1) + "\n")
     (Path(out) / CARD_MD).write_text(card_markdown(card))
     return card
@@ -101,7 +101,8 @@ def _merge(results: list[EpisodeStats], attr: str) -> dict[str, list[int]]:
     return total
 
 
-def dataset_card(results: list[EpisodeStats], config: SimulationConfig, seconds: float) -> dict:
+def dataset_card(results: list[EpisodeStats], config: SimulationConfig, seconds: float, out: Path) -> dict:
+    """The dataset card's record; episode paths relative to the dataset root `out` (no machine paths)."""
     frames = sum(s.frames for s in results)
     visible = _merge(results, "visible")
     per_camera = {}
@@ -123,7 +124,7 @@ def dataset_card(results: list[EpisodeStats], config: SimulationConfig, seconds:
         "dead_column_episodes": sum(s.dead_column is not None for s in results),
         "contact_by_hand_and_task": contact,
         "contact_visibility": per_camera,
-        "episodes_list": [{"path": s.folder.as_posix(), "task": s.task, "objects": s.objects,
+        "episodes_list": [{"path": s.folder.relative_to(out).as_posix(), "task": s.task, "objects": s.objects,
                            "dead_right_column": s.dead_column} for s in results],
     }
 

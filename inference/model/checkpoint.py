@@ -3,6 +3,7 @@ beside them) and the public loader `load_model`."""
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import torch
@@ -19,12 +20,15 @@ BACKBONE_PREFIXES = ("vision_encoder.encoder.", "multi_view_encoder.vision_encod
 
 
 def read_checkpoint(path: Path) -> dict:
-    """torch.load with weights_only; a user-facing error for a missing or unreadable file."""
+    """torch.load with weights_only (nothing in the file runs); one user-facing line, and no library warning,
+    for a missing or unreadable file."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: checkpoint not found")
     try:
-        data = torch.load(path, map_location="cpu", weights_only=True)
+        with warnings.catch_warnings():  # e.g. torch's "Detected pickle protocol 5" before its own error
+            warnings.simplefilter("ignore")
+            data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises several types (pickle, zip, runtime) for a bad file
         raise UserError(f"{path}: not a readable PyTorch checkpoint ({exc.__class__.__name__})") from None
     if not isinstance(data, dict):

@@ -54,9 +54,11 @@ def device_label(device: torch.device) -> str:
 
 
 def autocast(device: torch.device, precision: str):
-    """The autocast context of `precision` on `device` (a no-op for fp32)."""
+    """The autocast context of `precision` on `device` (a no-op for fp32). Its weight-cast cache is off: a
+    CUDA graph captured under autocast would otherwise point at cached casts freed when the context exits
+    (each call enters a fresh context, so the cache would not outlive a call anyway)."""
     dtype = PRECISIONS[precision]
-    return torch.autocast(device.type, dtype=dtype, enabled=dtype is not None)
+    return torch.autocast(device.type, dtype=dtype, enabled=dtype is not None, cache_enabled=False)
 
 
 @dataclass(frozen=True)
@@ -74,10 +76,12 @@ class ProcessGroup:
 
 def join_process_group(device_name: str = "auto") -> ProcessGroup:
     """Under `torchrun` (WORLD_SIZE > 1) initialise the process group once — NCCL when this process runs on
-    a CUDA GPU, else gloo — and return where this process stands."""
+    a CUDA GPU (made the current device), else gloo — and return where this process stands."""
     world = int(os.environ.get("WORLD_SIZE", "1"))
     local = int(os.environ.get("LOCAL_RANK", "0"))
     if world > 1 and not dist.is_initialized():
-        on_gpu = resolve_device(device_name, local).type == "cuda"
-        dist.init_process_group("nccl" if on_gpu else "gloo")
+        device = resolve_device(device_name, local)
+        if device.type == "cuda":
+            torch.cuda.set_device(device)  # NCCL's collectives (all_gather_object too) use the current device
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
     return ProcessGroup(dist.get_rank() if world > 1 else 0, world, local)
