@@ -1,4 +1,4 @@
-"""Training: end to end with resume, learning, view dropout, the NaN guard, the feature cache, DDP."""
+"""Training: end to end with resume, learning, view dropout, the NaN guard, the feature cache, loader workers, DDP."""
 from __future__ import annotations
 
 import json
@@ -17,6 +17,7 @@ import yaml
 
 from touchanything.app.cli import main
 from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.errors import UserError
 from touchanything.inference.model.checkpoint import load_model, read_checkpoint
 from touchanything.inference.model.model_config import PRESETS, with_backbone
 from touchanything.inference.model.touch_model import TouchAnything
@@ -28,18 +29,22 @@ from touchanything.inference.training.train_config import (
     SystemConfig,
     TrainConfig,
     TrainingConfig,
+    describe_settings,
     train_config_from_file,
 )
 from touchanything.inference.training.trainer import Trainer, TrainingError
+
+pytestmark = pytest.mark.slow
 
 TINY = with_backbone(PRESETS["tiny"], freeze=False)
 
 
 def config(model=TINY, epochs: int = 2, batch_size: int = 4, lr: float = 1e-3, warmup_epochs: int = 1,
-           val_interval: int = 1) -> TrainConfig:
-    """A short run: periodic checkpoints every epoch, seed 3."""
+           val_interval: int = 1, num_workers: int = 0) -> TrainConfig:
+    """A short run: periodic checkpoints every epoch, seed 3, loading in the main process unless asked."""
     training = TrainingConfig(batch_size=batch_size, num_epochs=epochs, save_interval=1, val_interval=val_interval,
-                              optimizer=OptimizerConfig(lr=lr), scheduler=SchedulerConfig(warmup_epochs=warmup_epochs))
+                              num_workers=num_workers, optimizer=OptimizerConfig(lr=lr),
+                              scheduler=SchedulerConfig(warmup_epochs=warmup_epochs))
     return TrainConfig(model=model, training=training, system=SystemConfig(seed=3))
 
 
@@ -146,9 +151,54 @@ def test_view_dropout_proportions_over_many_steps():
         assert abs(counts[key] / steps - share) < 0.03, (key, counts)
 
 
-def test_trainer_records_the_view_sets_it_trained_on(data, tmp_path):
-    result = Trainer(config(epochs=2), data, tmp_path / "views", log=lambda _: None).fit()
+def test_trainer_records_the_view_sets_it_trained_on_with_loader_workers(data, tmp_path):
+    result = Trainer(config(epochs=2, num_workers=2), data, tmp_path / "views", log=lambda _: None).fit()
     assert sum(result.view_sets.values()) > 0 and all(k.startswith("ego") for k in result.view_sets)
+    assert len(result.train_loss) == 2 and all(np.isfinite(result.train_loss + result.val_loss))
+
+
+def _same(a, b) -> bool:
+    """The same keys and exactly equal tensors, nested views included."""
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    return torch.equal(a, b)
+
+
+def _open_hdf5_files() -> int:
+    return h5py.h5f.get_obj_count(h5py.h5f.OBJ_ALL, h5py.h5f.OBJ_FILE)
+
+
+def test_loader_workers_give_the_same_batches_as_the_main_process(data, tmp_path):
+    main_process, workers = (Trainer(config(num_workers=n), data, tmp_path / str(n), log=lambda _: None) for n in (0, 2))
+    open_before = _open_hdf5_files()
+    orders = []
+    for epoch in (0, 1):
+        torch.manual_seed(11)
+        expected, got = list(main_process.epoch_batches(epoch)), list(workers.epoch_batches(epoch))
+        drawn = torch.rand(4)
+        torch.manual_seed(11)
+        assert torch.equal(drawn, torch.rand(4))  # the loaders left the global RNG (view dropout) untouched
+        assert len(expected) == len(got) == 3 and all(_same(a, b) for a, b in zip(expected, got))
+        orders.append(torch.cat([b["frames"][:, 0] * 100 + b["episode"] for b in expected]).tolist())
+        assert all(_same(a, b) for a, b in zip(main_process.val_loader, workers.val_loader, strict=True))
+    assert orders[0] != orders[1] and sorted(orders[0]) == sorted(orders[1])  # reshuffled per epoch, every clip once
+    assert _open_hdf5_files() == open_before  # the main process holds no HDF5 file open when workers fork
+
+
+def test_num_workers_is_read_validated_and_shown(tmp_path):
+    path = tmp_path / "workers.yaml"
+    path.write_text("training: {num_workers: 2}\n")
+    config_read = train_config_from_file(path)
+    assert config_read.training.num_workers == 2 and "training.num_workers" not in config_read.unused
+    assert "2 data-loader worker(s)" in "\n".join(describe_settings(config_read))
+    assert TrainingConfig().num_workers == 4  # the official default
+    for value in ("-1", "2.5", "two", "true"):
+        path.write_text(f"training: {{num_workers: {value}}}\n")
+        with pytest.raises(UserError) as err:
+            train_config_from_file(path)
+        assert "training.num_workers" in str(err.value) and "\n" not in str(err.value), value
+    with pytest.raises(UserError, match="training.num_workers: must be ≥ 0"):
+        TrainConfig(training=TrainingConfig(num_workers=-1)).check()
 
 
 def test_nan_guard_names_the_step_and_episode(data, tmp_path):
@@ -167,9 +217,11 @@ def test_nan_guard_names_the_step_and_episode(data, tmp_path):
 def test_frozen_backbone_features_are_cached_after_the_first_epoch(data, tmp_path):
     trainer = Trainer(config(model=with_backbone(TINY, freeze=True)), data, tmp_path / "frozen", log=lambda _: None)
     trainer.fit()
-    frames = sum(len(clip_starts(len(e.poses), 15)) * 8 for e in trainer.train_set.episodes)
-    views = len(trainer.train_set.episodes[0].images)
-    assert trainer.cache.hits > 0 and len(trainer.cache) >= frames * views
+    def cached_keys(dataset) -> int:
+        return sum(len(clip_starts(len(e.poses), 15)) * 8 * len(e.views) for e in dataset.episodes)
+
+    assert trainer.cache.hits > 0 and len(trainer.cache) == cached_keys(trainer.train_set)
+    assert len(trainer.val_cache) == cached_keys(trainer.val_set)  # validation never reads training tokens
 
 
 def test_empty_mask_clips_are_skipped_and_zero_pressure_trains(data, tmp_path):
@@ -191,6 +243,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.multiprocess
 def test_ddp_with_two_cpu_processes(data, tmp_path):
     cfg = tmp_path / "ddp.yaml"
     cfg.write_text(yaml.safe_dump({"model": {"vision_encoder": {"model_name": "vit_t14", "freeze": False},
@@ -200,7 +253,8 @@ def test_ddp_with_two_cpu_processes(data, tmp_path):
                                              "fusion": {"num_layers": 1, "num_heads": 4},
                                              "tactile_decoder": {"conv_channels": 64}},
                                    "data": {"image_size": [112, 112]},
-                                   "training": {"num_epochs": 1, "batch_size": 2, "scheduler": {"warmup_epochs": 0}}}))
+                                   "training": {"num_epochs": 1, "batch_size": 2, "num_workers": 1,
+                                                "scheduler": {"warmup_epochs": 0}}}))
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MASTER_ADDR": "127.0.0.1"}
     command = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_addr", "127.0.0.1",
                "--master_port", str(_free_port()), "-m", "touchanything.app.cli", "train", "--config", str(cfg), "--data", str(data),

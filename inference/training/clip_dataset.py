@@ -1,15 +1,24 @@
 """Training clips: the official sampler (T = 8 frames at interval 2, non-overlapping starts 0, 15, 30, …),
-pose rules and target preparation, over HDF5 trajectories held in memory at the model's input size."""
+pose rules and target preparation over HDF5 trajectories, and the DataLoader that feeds them.
+
+Poses and pressure (small) are read once when the dataset is built; frames are decoded and resized per clip,
+inside the DataLoader's worker processes when there are any. A worker opens each trajectory's file on first
+use and closes it when the worker exits; the main process opens a file per clip and closes it at once, so
+no HDF5 handle is ever open in a process that forks workers.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from multiprocessing.util import Finalize
 from pathlib import Path
 
+import h5py
 import numpy as np
 import torch
-from torch.utils.data import Dataset
+from torch.utils.data import DataLoader, Dataset, DistributedSampler, get_worker_info
 
-from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.episode_loader import is_hdf5_path, open_episode
+from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
 from touchanything.devices.errors import UserError
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from touchanything.inference.model.pose_encoder import prepare_poses
@@ -23,11 +32,11 @@ def clip_starts(frames: int, span: int) -> list[int]:
 
 @dataclass
 class EpisodeArrays:
-    """One trajectory: resized frames {view: (T, S, S, 3) uint8}, prepared poses (T, 42, 3), pressure
-    (T, 2, 21, 21) with NaN outside the layout, and whether it is stored normalised."""
+    """One trajectory's HDF5 file, its readable views (official names, read per clip), prepared poses
+    (T, 42, 3), pressure (T, 2, 21, 21) with NaN outside the layout, and whether it is stored normalised."""
 
     path: Path
-    images: dict[str, np.ndarray]
+    views: tuple[str, ...]
     poses: np.ndarray
     pressure: np.ndarray
     normalized: bool
@@ -47,21 +56,18 @@ def episode_poses(episode, pose_source: str, fallback: str | None) -> np.ndarray
     return prepare_poses(joints.reshape(episode.num_frames, 42, 3), valid)
 
 
-def load_episode(path: Path, size: int, pose_source: str, fallback: str | None = None) -> EpisodeArrays:
+def load_episode(path: Path, pose_source: str, fallback: str | None = None) -> EpisodeArrays:
+    """Everything of an HDF5 trajectory but its frames; UserError when it cannot be trained on."""
+    if not is_hdf5_path(path):
+        raise UserError(f"{path}: training reads HDF5 trajectories (convert raw episodes with `touchanything convert`)")
     with open_episode(path) as episode:
         if episode.pressure is None:
             raise UserError(f"{path}: no pressure grids; cannot train on it")
         poses = episode_poses(episode, pose_source, fallback)
         if poses is None:
             raise UserError(f"{path}: no {pose_source} poses; cannot train on it")
-        images = {}
-        for view, source in episode.views.items():
-            frames = [source.read(i) for i in range(episode.num_frames)]
-            if any(f is None for f in frames):
-                raise UserError(f"{path}: view {view} has unreadable frames")
-            images[view] = np.stack([resize_frame(f, size) for f in frames])
         normalized = bool(episode.pressure.attrs.get("normalized", False))
-        return EpisodeArrays(Path(path), images, poses, episode.pressure.grids.astype(np.float32), normalized)
+        return EpisodeArrays(Path(path), episode.view_names, poses, episode.pressure.grids.astype(np.float32), normalized)
 
 
 def prepare_target(pressure: np.ndarray, normalized: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -73,14 +79,23 @@ def prepare_target(pressure: np.ndarray, normalized: bool) -> tuple[np.ndarray, 
     return np.clip(values / vmax, 0.0, 1.0).astype(np.float32), mask.astype(np.float32)
 
 
+def _close_files(files: dict[int, h5py.File]) -> None:
+    for file in files.values():
+        file.close()
+    files.clear()
+
+
 class ClipDataset(Dataset):
     """Items: views {name: (T, 3, S, S)}, poses (T, 42, 3), target and mask (T, 2, 21, 21), the episode
-    index and the frame indices (T,) — everything a training step and the feature cache need."""
+    index and the frame indices (T,) — everything a training step and the feature cache need. Items depend
+    only on the index (no random numbers are drawn), so any number of workers yields the same batches."""
 
     def __init__(self, files: list[Path], size: int, pose_source: str = "wilor", fallback: str | None = None) -> None:
-        self.episodes = [load_episode(f, size, pose_source, fallback) for f in files]
+        self.episodes = [load_episode(f, pose_source, fallback) for f in files]
+        self.size = size
         self.offsets = np.arange(CLIP_LENGTH) * FRAME_INTERVAL
         self.items = [(e, s) for e, ep in enumerate(self.episodes) for s in clip_starts(len(ep.poses), SPAN)]
+        self._files: dict[int, h5py.File] = {}  # filled only inside a DataLoader worker
 
     def __len__(self) -> int:
         return len(self.items)
@@ -91,8 +106,47 @@ class ClipDataset(Dataset):
         frames = start + self.offsets
         target, mask = prepare_target(episode.pressure[frames], episode.normalized)
         return {
-            "views": {v: to_model_input(images[frames]) for v, images in episode.images.items()},
+            "views": self._views(e, frames),
             "poses": torch.from_numpy(episode.poses[frames]),
             "target": torch.from_numpy(target), "mask": torch.from_numpy(mask),
             "episode": e, "frames": torch.from_numpy(frames),
         }
+
+    def _views(self, e: int, frames: np.ndarray) -> dict[str, torch.Tensor]:
+        """Decoded, resized and normalised frames of every view: through this worker's open file, or
+        (in the main process) a file opened for this clip only."""
+        if get_worker_info() is not None:
+            return self._read(self._worker_file(e), e, frames)
+        with h5py.File(self.episodes[e].path, "r") as file:
+            return self._read(file, e, frames)
+
+    def _read(self, file: h5py.File, e: int, frames: np.ndarray) -> dict[str, torch.Tensor]:
+        views = {}
+        for view in self.episodes[e].views:
+            data = file[IMAGE_KEYS[view]]
+            try:
+                images = [resize_frame(data[i], self.size) for i in frames]
+            except OSError as exc:
+                raise UserError(f"{file.filename}: view {view}: frames {frames[0]}–{frames[-1]} unreadable ({exc})") from None
+            views[view] = to_model_input(np.stack(images))
+        return views
+
+    def _worker_file(self, e: int) -> h5py.File:
+        """This worker's handle on trajectory `e`, opened on first use and closed when the worker exits."""
+        if not self._files:
+            Finalize(self, _close_files, args=(self._files,), exitpriority=0)
+        if e not in self._files:
+            self._files[e] = h5py.File(self.episodes[e].path, "r")
+        return self._files[e]
+
+
+def clip_loader(dataset: ClipDataset, batch_size: int, num_workers: int, seed: int, shuffle: bool,
+                pin_memory: bool = False, replicas: int = 1, rank: int = 0) -> DataLoader:
+    """A loader kept for the whole run (workers persist across epochs); call `loader.sampler.set_epoch(e)`
+    before each pass. The order is a permutation seeded by `seed + epoch` (this rank's share of it under
+    DDP), whatever the number of workers; the loader draws its workers' seeds from its own generator, so
+    it never consumes the global torch RNG (view dropout, dropout) — 0 and N workers train identically."""
+    sampler = DistributedSampler(dataset, num_replicas=replicas, rank=rank, shuffle=shuffle, seed=seed)
+    return DataLoader(dataset, batch_size=batch_size, sampler=sampler, num_workers=num_workers,
+                      pin_memory=pin_memory, persistent_workers=num_workers > 0,
+                      generator=torch.Generator().manual_seed(seed))

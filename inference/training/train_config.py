@@ -1,7 +1,7 @@
 """Training settings in the official structure: `training`, `system` and the training part of `data`.
 
 Read strictly (every key of the official configs is known; a misspelt one is an error naming it), with the
-official names: `training.{batch_size, num_epochs, save_interval, val_interval}`,
+official names: `training.{batch_size, num_epochs, save_interval, val_interval, num_workers}`,
 `training.optimizer.{type: adamw, lr, weight_decay, betas}`, `training.scheduler.{type: cosine, warmup_epochs,
 min_lr}`, `training.loss.{mse_weight, l1_weight, tv_weight, contact_weight, pressure_threshold}`,
 `system.{seed, mixed_precision}`, `data.{pose_source, fallback_pose_source}`. Defaults are the official
@@ -50,13 +50,15 @@ class SchedulerConfig:
 
 @dataclass(frozen=True)
 class TrainingConfig:
+    """`num_workers`: DataLoader worker processes per training process (0: load in the main process)."""
+
     FIXED: ClassVar = {"invalid_pose_policy": "keep"}
-    UNUSED: ClassVar = ("num_workers", "gradient_accumulation_steps", "keep_last_n", "log_interval",
-                        "pose_valid_joint_ratio_threshold")
+    UNUSED: ClassVar = ("gradient_accumulation_steps", "keep_last_n", "log_interval", "pose_valid_joint_ratio_threshold")
     batch_size: int = field(default=16, metadata=limits(1))
     num_epochs: int = field(default=100, metadata=limits(1))
     save_interval: int = field(default=5, metadata=limits(1))
     val_interval: int = field(default=1, metadata=limits(1))
+    num_workers: int = field(default=4, metadata=limits(0))
     optimizer: OptimizerConfig = OptimizerConfig()
     scheduler: SchedulerConfig = SchedulerConfig()
     loss: TactileLossConfig = TactileLossConfig()
@@ -137,6 +139,7 @@ def train_config_to_dict(config: TrainConfig) -> dict:
 def describe_settings(config: TrainConfig) -> list[str]:
     """The effective settings, a few lines, printed at the start of a run."""
     m, t, o, s, loss = config.model, config.training, config.training.optimizer, config.training.scheduler, config.training.loss
+    loading = f"{t.num_workers} data-loader worker(s)" if t.num_workers else "data loaded in the main process"
     lines = [
         f"model: {m.backbone} at {m.image_size} px (backbone {'frozen' if m.vision_encoder.freeze else 'trained'}"
         f"{', weights ' + m.vision_encoder.pretrained_path if m.vision_encoder.pretrained_path else ''}), "
@@ -145,7 +148,8 @@ def describe_settings(config: TrainConfig) -> list[str]:
         f"decoder {m.tactile_decoder.conv_channels} channels; view dropout {m.multi_view.view_dropout_prob}",
         f"training: {t.num_epochs} epochs, batch {t.batch_size}, AdamW lr {o.lr:g} weight decay {o.weight_decay:g} "
         f"betas ({o.betas[0]:g}, {o.betas[1]:g}), {s.warmup_epochs} warm-up epochs then cosine to {s.min_lr:g}, "
-        f"gradient clip {GRAD_CLIP:g}, {'mixed precision' if config.system.mixed_precision else 'fp32'}, seed {config.system.seed}",
+        f"gradient clip {GRAD_CLIP:g}, {'mixed precision' if config.system.mixed_precision else 'fp32'}, seed {config.system.seed}, "
+        f"{loading}",
         f"loss: mse {loss.mse_weight:g} + l1 {loss.l1_weight:g} (×{loss.contact_weight:g} above {loss.pressure_threshold:g}) "
         f"+ tv {loss.tv_weight:g}; clips of {CLIP_LENGTH} frames at interval {FRAME_INTERVAL}; poses {config.data.pose_source}"
         f"{' falling back to ' + config.data.fallback_pose_source if config.data.fallback_pose_source else ''}; "

@@ -1,11 +1,12 @@
 """Training: one process (CPU or GPU) or several under torchrun (DDP, unused parameters allowed because of
 view dropout). Official objective, optimiser and schedule; validation, best / periodic / last checkpoints
 in the official format, exact resume, a NaN guard, and a backbone-feature cache when the backbone is frozen.
+Clips are loaded by `training.num_workers` persistent worker processes (pinned batches on a GPU), in an
+order fixed by the seed and the epoch alone.
 """
 from __future__ import annotations
 
 import math
-import os
 import random
 import time
 from collections import Counter
@@ -17,14 +18,15 @@ import numpy as np
 import torch
 import torch.distributed as dist
 from torch.nn.parallel import DistributedDataParallel
-from torch.utils.data import DataLoader, DistributedSampler, RandomSampler
+from torch.utils.data import DataLoader
 from tqdm import tqdm
 
-from touchanything.devices.episodes.dataset_split import read_split
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE, read_split
 from touchanything.devices.errors import UserError
 from touchanything.inference.model.checkpoint import build_model, load_state, model_state, read_checkpoint, save_checkpoint
 from touchanything.inference.model.model_config import SPAN
-from touchanything.inference.training.clip_dataset import ClipDataset
+from touchanything.inference.model.torch_device import join_process_group, resolve_device
+from touchanything.inference.training.clip_dataset import ClipDataset, clip_loader
 from touchanything.inference.training.feature_cache import FeatureCache
 from touchanything.inference.training.tactile_loss import tactile_loss
 from touchanything.inference.training.train_config import GRAD_CLIP, TrainConfig, train_config_to_dict
@@ -49,16 +51,6 @@ class TrainResult:
     clips_per_second: float = 0.0
 
 
-def _distributed() -> tuple[int, int, torch.device]:
-    """(rank, world size, device); initialises the process group under torchrun."""
-    world = int(os.environ.get("WORLD_SIZE", "1"))
-    local = int(os.environ.get("LOCAL_RANK", "0"))
-    if world > 1 and not dist.is_initialized():
-        dist.init_process_group("nccl" if torch.cuda.is_available() else "gloo")
-    device = torch.device(f"cuda:{local}" if torch.cuda.is_available() else "cpu")
-    return (dist.get_rank() if world > 1 else 0), world, device
-
-
 def _schedule(optimizer, config: TrainConfig):
     """Linear warm-up from 1 % to the full rate, then cosine to `min_lr`; stepped once per epoch."""
     epochs, s = config.training.num_epochs, config.training.scheduler
@@ -70,7 +62,7 @@ def _schedule(optimizer, config: TrainConfig):
 
 
 def _files(data: Path, split_file: Path | None, key: str) -> list[Path]:
-    files = read_split(split_file or Path(data) / "split.json")[key]
+    files = read_split(split_file or Path(data) / SPLIT_FILE)[key]
     missing = [f for f in files if not f.is_file()]
     if missing:
         raise UserError(f"{missing[0]}: listed in the split but not found ({len(missing)} missing)")
@@ -81,7 +73,8 @@ class Trainer:
     def __init__(self, config: TrainConfig, data: Path, out: Path, split_file: Path | None = None,
                  log: Callable[[str], None] = print) -> None:
         self.config, self.out, self.log = config.check(), Path(out), log
-        self.rank, self.world, self.device = _distributed()
+        group = join_process_group()
+        self.rank, self.world, self.device = group.rank, group.world, resolve_device("auto", group.local_rank)
         seed = config.system.seed + self.rank
         torch.manual_seed(seed)
         random.seed(seed)
@@ -104,7 +97,9 @@ class Trainer:
         self.optimizer = torch.optim.AdamW(params, lr=o.lr, weight_decay=o.weight_decay, betas=o.betas)
         self.scheduler = _schedule(self.optimizer, config)
         self.scaler = torch.amp.GradScaler("cuda", enabled=config.system.mixed_precision and self.device.type == "cuda")
-        self.cache = FeatureCache() if c.vision_encoder.freeze else None
+        # one cache per dataset: both number their episodes from 0, and the cache is keyed by that number
+        self.cache, self.val_cache = (FeatureCache(), FeatureCache()) if c.vision_encoder.freeze else (None, None)
+        self.train_loader, self.val_loader = self._loader(self.train_set, True), self._loader(self.val_set, False)
         self.result = TrainResult()
         self.start_epoch = 0
 
@@ -119,24 +114,32 @@ class Trainer:
         self.start_epoch = int(checkpoint.get("epoch", 0))
         self.result.best_val_loss = float((checkpoint.get("metrics") or {}).get("best_val_loss", math.inf))
 
-    def _loader(self, dataset: ClipDataset, shuffle: bool, epoch: int) -> DataLoader:
-        if self.world > 1:
-            sampler = DistributedSampler(dataset, shuffle=shuffle, seed=self.config.system.seed)
-            sampler.set_epoch(epoch)
-        else:
-            generator = torch.Generator().manual_seed(self.config.system.seed + epoch)
-            sampler = RandomSampler(dataset, generator=generator) if shuffle else None
-        return DataLoader(dataset, batch_size=self.config.training.batch_size, sampler=sampler)
+    def _loader(self, dataset: ClipDataset, shuffle: bool) -> DataLoader:
+        """This process's loader over `dataset` for the whole run: `training.num_workers` persistent workers,
+        pinned batches on a GPU, the order seeded by `system.seed` and the epoch (this rank's share under DDP)."""
+        t = self.config.training
+        return clip_loader(dataset, t.batch_size, t.num_workers, self.config.system.seed, shuffle,
+                           pin_memory=self.device.type == "cuda", replicas=self.world, rank=self.rank)
 
-    def _forward(self, batch: dict) -> torch.Tensor:
-        poses = batch["poses"].to(self.device)
+    def epoch_batches(self, epoch: int) -> DataLoader:
+        """The training batches of `epoch` (0-based), in the order fixed by the seed and the epoch."""
+        self.train_loader.sampler.set_epoch(epoch)
+        return self.train_loader
+
+    def _to_device(self, x: torch.Tensor) -> torch.Tensor:
+        """Copy to the training device; asynchronous from pinned memory on a GPU."""
+        return x.to(self.device, non_blocking=True)
+
+    def _forward(self, batch: dict, cache: FeatureCache | None) -> torch.Tensor:
+        """Predicted tactile maps (float32); a frozen backbone's tokens come through `cache`, the batch's dataset's."""
+        poses = self._to_device(batch["poses"])
         autocast = torch.autocast(self.device.type, dtype=torch.bfloat16 if self.device.type == "cpu" else torch.float16,
                                   enabled=self.config.system.mixed_precision)
         with autocast:
-            if self.cache is not None:
-                tokens = self.cache.tokens(self.model.vision_encoder, batch["views"], batch["episode"], batch["frames"], self.device)
+            if cache is not None:
+                tokens = cache.tokens(self.model.vision_encoder, batch["views"], batch["episode"], batch["frames"], self.device)
                 return self.net(poses=poses, tokens=tokens)["tactile"].float()
-            views = {v: x.to(self.device) for v, x in batch["views"].items()}
+            views = {v: self._to_device(x) for v, x in batch["views"].items()}
             return self.net(poses=poses, views=views)["tactile"].float()
 
     def _episodes(self, batch: dict, dataset: ClipDataset) -> str:
@@ -158,16 +161,16 @@ class Trainer:
     def _train_epoch(self, epoch: int) -> float:
         self.net.train()
         losses, clips, started = [], 0, time.perf_counter()
-        bar = tqdm(self._loader(self.train_set, True, epoch), desc=f"epoch {epoch + 1}/{self.config.training.num_epochs}",
+        bar = tqdm(self.epoch_batches(epoch), desc=f"epoch {epoch + 1}/{self.config.training.num_epochs}",
                    unit="batch", disable=self.rank != 0, leave=False)
         for step, batch in enumerate(bar, start=1):
-            mask = batch["mask"].to(self.device)
+            mask = self._to_device(batch["mask"])
             if mask.sum() == 0:
                 self.result.skipped_batches += 1
                 continue
-            pred = self._forward(batch)
+            pred = self._forward(batch, self.cache)
             self.result.view_sets["+".join(self.model.multi_view_encoder.last_kept)] += 1
-            loss = tactile_loss(pred, batch["target"].to(self.device), mask, self.config.training.loss)
+            loss = tactile_loss(pred, self._to_device(batch["target"]), mask, self.config.training.loss)
             self._check_loss(loss, epoch, step, batch)
             self.optimizer.zero_grad(set_to_none=True)
             self.scaler.scale(loss).backward()
@@ -186,11 +189,12 @@ class Trainer:
     def _validate(self) -> float:
         self.net.eval()
         total, count = 0.0, 0
-        for batch in self._loader(self.val_set, False, 0):
-            mask = batch["mask"].to(self.device)
+        for batch in self.val_loader:
+            mask = self._to_device(batch["mask"])
             if mask.sum() == 0:
                 continue
-            total += tactile_loss(self._forward(batch), batch["target"].to(self.device), mask, self.config.training.loss).item()
+            pred = self._forward(batch, self.val_cache)
+            total += tactile_loss(pred, self._to_device(batch["target"]), mask, self.config.training.loss).item()
             count += 1
         if self.world > 1:
             sums = torch.tensor([total, count], dtype=torch.float64, device=self.device)
