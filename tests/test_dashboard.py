@@ -122,7 +122,7 @@ def drive_controls(session: ReplaySession, dashboard: Dashboard, errors: list[st
                  and p.frame_index > 200, "an ego-only prediction after the seek")
         state = session.state()
         assert state.cumulative is not None and state.metric_frames < 100, state.metric_frames
-        assert state.model == "tiny (torch fp32)", state.model
+        assert state.model == "tiny (torch fp32 on cpu)", state.model
     except AssertionError as exc:
         errors.append(str(exc))
     finally:
