@@ -79,6 +79,12 @@ def test_record_the_simulated_rig_and_replay_it(tmp_path, capsys):
     ("[gloves.left]\nport = 'x'\nreconnect_backoff_s = [1, 2, 3]\n",
      "[gloves.left] reconnect_backoff_s: expected a list of 2 (a number, a number), got [1, 2, 3]"),
     ("[hands]\nport = 99999\n", "Rokoko UDP port 99999 is out of range"),
+    ("[simulator]\nepisode = []\n", "[simulator] episode: expected a path, got []"),
+    ("[simulator]\nepisode = 'x'\nlink_dir = 3\n", "[simulator] link_dir: expected a path, got 3"),
+    ("[model]\ncheckpoint = ''\n", "[model] checkpoint: expected a path, got ''"),
+    ("hands = 5\n", "[hands] must be a table, got 5"),
+    ("cameras = {ego = 1}\n", "[cameras.ego] must be a table, got 1"),
+    ("recording = 'often'\n", "[recording] must be a table, got 'often'"),
 ])
 def test_scene_errors_are_one_clear_line(tmp_path, text, message):
     scene = tmp_path / "scene.toml"

@@ -82,6 +82,7 @@ def read_scene(path: Path) -> Scene:
         raise UserError(f"{path}: unknown section(s) {', '.join(unknown)}; sections are {', '.join(SECTIONS)}")
     base = path.resolve().parent
     try:
+        _check_tables(table)
         return Scene(
             path=path, clock=_build(RigClockConfig, "clock", table.get("clock", {})),
             cameras={view: _device(f"cameras.{view}", "camera", s, base)
@@ -114,6 +115,17 @@ def _build(cls, section: str, settings: dict):
         raise UserError(f"[{section}] {message}") from None
 
 
+def _check_tables(table: dict) -> None:
+    """Every section, and every named entry of [cameras] and [gloves], must be a TOML table."""
+    for section, value in table.items():
+        if not isinstance(value, dict):
+            raise UserError(f"[{section}] must be a table, got {value!r}")
+    for section in ("cameras", "gloves"):
+        for name, value in table.get(section, {}).items():
+            if not isinstance(value, dict):
+                raise UserError(f"[{section}.{name}] must be a table, got {value!r}")
+
+
 def _named(table: dict, section: str, names: tuple[str, ...]) -> dict[str, dict]:
     entries = table.get(section, {})
     unknown = sorted(set(entries) - set(names))
@@ -122,8 +134,11 @@ def _named(table: dict, section: str, names: tuple[str, ...]) -> dict[str, dict]
     return entries
 
 
-def _resolve(value: str, base: Path) -> str:
-    return str(value if Path(value).is_absolute() else base / value)
+def _resolve(section: str, key: str, value: Any, base: Path) -> Path:
+    """A path setting relative to the scene's folder; anything but text is one line naming the key."""
+    if not isinstance(value, str) or not value or "\0" in value:
+        raise UserError(f"[{section}] {key}: expected a path, got {value!r}")
+    return Path(value) if Path(value).is_absolute() else base / value
 
 
 def _device(section: str, role: str, settings: dict, base: Path, kind_key: str = "kind", default: str | None = None,
@@ -137,7 +152,7 @@ def _device(section: str, role: str, settings: dict, base: Path, kind_key: str =
         raise UserError(f"[{section}] {exc}") from None
     for key in kind.path_keys:
         if isinstance(settings.get(key), str):
-            settings[key] = _resolve(settings[key], base)
+            settings[key] = str(_resolve(section, key, settings[key], base))
     return _build(kind.config, section, {**fixed, **settings})
 
 
@@ -145,7 +160,7 @@ def _model(settings: dict, base: Path) -> ModelChoice:
     settings = dict(settings)
     for key in ("checkpoint", "config"):
         if key in settings:
-            settings[key] = Path(_resolve(settings[key], base))
+            settings[key] = _resolve("model", key, settings[key], base)
     return _build(ModelChoice, "model", {"checkpoint": default_checkpoint(), **settings})
 
 
@@ -154,9 +169,9 @@ def _simulator(settings: dict, hands: dict, base: Path) -> SimulatedRigConfig:
     settings = dict(settings)
     if "episode" not in settings:
         raise UserError("[simulator] needs an episode to replay")
-    settings["episode"] = Path(_resolve(settings["episode"], base))
-    if "link_dir" in settings:
-        settings["link_dir"] = Path(_resolve(settings["link_dir"], base))
+    for key in ("episode", "link_dir"):
+        if key in settings:
+            settings[key] = _resolve("simulator", key, settings[key], base)
     receiver = RokokoConfig(**{k: v for k, v in hands.items() if k in ("host", "port")})
     return _build(SimulatedRigConfig, "simulator", {"rokoko_host": receiver.host, "rokoko_port": receiver.port,
                                                      **settings})
@@ -164,8 +179,6 @@ def _simulator(settings: dict, hands: dict, base: Path) -> SimulatedRigConfig:
 
 def _recording(settings: dict) -> RecordingSettings:
     """`fsync_s = false` is None (never); any other value than seconds ≥ 0 is one line naming the key."""
-    if not isinstance(settings, dict):
-        raise UserError(f"[recording] must be a table, got {settings!r}")
     settings = dict(settings)
     if settings.get("fsync_s", 1.0) is False:
         settings["fsync_s"] = None
