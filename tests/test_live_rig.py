@@ -3,6 +3,7 @@ camera files, recorded trackers) → adapters → rig clock → engine and recor
 errors."""
 from __future__ import annotations
 
+import itertools
 import threading
 import time
 from pathlib import Path
@@ -19,6 +20,7 @@ from touchanything.devices.rig.pose_transform import PoseCalibration
 from touchanything.devices.sim.rig import rig_calibration
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
+SAMPLE = SCENES.parent / "recordings" / "sample"
 
 
 def test_the_simulated_scene_carries_the_simulators_calibration():
@@ -58,6 +60,29 @@ def test_record_the_simulated_rig_and_replay_it(tmp_path, capsys):
         assert episode.num_frames == written and set(episode.views) == {"ego", "wrist_left", "wrist_right"}
         assert episode.pressure is not None and episode.glove is not None and episode.rokoko is not None
         assert np.isfinite(episode.pressure.grids[episode.pressure.grids == episode.pressure.grids]).all()
+
+
+def test_a_recording_that_falls_behind_gets_the_cpu_before_the_engine(tmp_path):
+    """Snapshots arrive far faster than three views can be encoded: once the recorder's queue is over a quarter
+    full the engine skips frames (counted), and the recorder keeps every frame."""
+    from touchanything.devices.rig.recorder import Recorder, RecorderConfig
+    from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
+
+    session = open_live_session(SCENES / "sim.toml", device="cpu")  # not started: no devices
+    session.start_engine()
+    recorder = session.recorder = Recorder(RecorderConfig(tmp_path / "ep", queue_frames=60))
+    recorder.start()
+    episode = next(iter(sorted(SAMPLE.glob("*/*/*"))))
+    with open_episode(episode) as source:
+        snapshots = list(itertools.islice(ReplaySource(source, ReplayConfig(speed=None)), 60))
+    for snapshot in snapshots:
+        session._on_snapshot(snapshot)  # as the rig clock's thread does
+    counters = recorder.stop()
+    session.recorder = None
+    stats = session.live.stats
+    session.stop_engine()
+    assert counters.written == 60 and counters.dropped == 0
+    assert stats.submitted == 60 and stats.skipped >= 20 and stats.dropped >= stats.skipped
 
 
 @pytest.mark.parametrize("text, message", [

@@ -182,6 +182,43 @@ def test_a_full_queue_drops_frames_and_write_never_blocks(tmp_path):
         assert episode.num_frames == counters.written
 
 
+def test_a_recording_is_behind_while_its_queue_is_over_a_quarter_full(tmp_path):
+    recorder = Recorder(RecorderConfig(tmp_path / "ep", queue_frames=40))
+    recorder.start()
+    behind = []
+    for k in range(40):  # queued in microseconds, encoded in milliseconds
+        recorder.write(synthetic_snapshot(k))
+        behind.append(recorder.is_behind)
+    deadline = time.monotonic() + 30
+    while recorder.counters.queued and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert behind[:10] == [False] * 10 and behind[-1] and not recorder.is_behind
+    assert recorder.stop().written + recorder.counters.dropped == 40
+
+
+def test_the_writer_keeps_no_glove_history_in_memory(tmp_path):
+    """The grids are computed from the glove stream read back at close, so a long recording's memory stays
+    flat (the raw bytes of every frame used to be kept: ~0.6 kB a frame, 1.1 MB a minute)."""
+    import tracemalloc
+
+    frame = synthetic_snapshot(3)
+    with RawEpisodeWriter(tmp_path / "ep") as writer:
+        glove = EpisodeFrame(glove=(frame.pressure_raw, frame.glove_present, frame.imu_wxyz))
+        for _ in range(100):
+            writer.write(glove)
+        tracemalloc.start()
+        before = tracemalloc.take_snapshot()
+        for _ in range(2000):
+            writer.write(glove)
+        grown = sum(stat.size_diff for stat in tracemalloc.take_snapshot().compare_to(before, "filename"))
+        tracemalloc.stop()
+    assert grown < 100_000, grown
+    with open_episode(tmp_path / "ep") as episode:
+        expected = np.where(frame.glove_present[:, None], frame.pressure_raw, 0)
+        assert episode.num_frames == 2100 and np.array_equal(episode.glove.raw[-1], expected)
+        assert episode.pressure.grids.shape == (2100, 2, 21, 21)
+
+
 def test_bad_folders_and_settings_are_user_errors(tmp_path):
     with pytest.raises(UserError, match="at least 1 frame"):
         RecorderConfig(tmp_path / "ep", queue_frames=0)

@@ -73,8 +73,9 @@ class EngineSession:
             except Exception as exc:  # shown to the user; the session ends either way
                 self.message = f"engine stopped with an error: {exc}"
 
-    def submit(self, snapshot: Snapshot) -> None:
-        """Source thread: show the snapshot and hand it (with only the views switched on) to the engine."""
+    def submit(self, snapshot: Snapshot, predict: bool = True) -> None:
+        """Source thread: show the snapshot and hand it (with only the views switched on) to the engine;
+        `predict` False: the engine skips it (counted as dropped)."""
         truth = self.truth_of(snapshot)
         with self._lock:
             self._snapshot = snapshot
@@ -82,7 +83,9 @@ class EngineSession:
             while len(self._recent) > RECENT_FRAMES:
                 self._recent.pop(next(iter(self._recent)))
         self.frames.tick()
-        if self.live is not None:
+        if self.live is not None and not predict:
+            self.live.skip()
+        elif self.live is not None:
             images = {v: im for v, im in snapshot.images.items() if v in self.views}
             self.live.submit(dataclasses.replace(snapshot, images=images))
 

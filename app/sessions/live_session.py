@@ -47,11 +47,12 @@ class LiveSession(EngineSession):
         self.stop_engine()
 
     def _on_snapshot(self, snapshot: Snapshot) -> None:
-        """Rig clock thread."""
+        """Rig clock thread. A recording comes first: while the recorder is behind, the engine skips frames
+        (live mode drops them anyway) so that the CPU goes to writing, which must not drop any."""
         recorder = self.recorder
         if recorder is not None:
             recorder.write(snapshot)
-        self.submit(snapshot)
+        self.submit(snapshot, predict=recorder is None or not recorder.is_behind)
 
     def truth_of(self, snapshot: Snapshot) -> np.ndarray | None:
         """The gloves' pressure through the live tactile pipeline; a hand without a glove sample is NaN."""

@@ -46,11 +46,11 @@ class EpisodeFrame:
     timestamp_us: int | None = None
 
 
-def write_grids_from_glove(folder: Path, layout: TactileLayout | None = None,
-                           config: TactileConfig = TactileConfig()) -> PressureGrids:
-    """Compute `pressure_grids.npz` of an episode folder from its `jq_pressure.json`."""
+def write_grids_from_glove(folder: Path, layout: TactileLayout | None = None, config: TactileConfig = TactileConfig(),
+                           sync: bool = False) -> PressureGrids:
+    """Compute `pressure_grids.npz` of an episode folder from its `jq_pressure.json` (`sync`: see `_write_grids`)."""
     stream, _ = read_glove(Path(folder) / GLOVE_FILE)
-    return _write_grids(Path(folder), stream.raw, layout or TactileLayout.default(), config)
+    return _write_grids(Path(folder), stream.raw, layout or TactileLayout.default(), config, sync=sync)
 
 
 def _write_grids(folder: Path, raw: np.ndarray, layout: TactileLayout, config: TactileConfig,
@@ -94,7 +94,6 @@ class RawEpisodeWriter:
         self._videos: dict[str, VideoWriter] = {}
         self._last_images: dict[str, np.ndarray] = {}
         self._streams: dict[str, IO[str]] = {}
-        self._glove_raw: list[np.ndarray] = []
         # directories whose entries changed since the last sync: the parents of the folders mkdir created
         # (outermost first), then the folder itself whenever a file is created in it
         self._new_entries: list[Path] = [p.parent for p in reversed(created)]
@@ -142,11 +141,6 @@ class RawEpisodeWriter:
         }
         for name, row in rows.items():
             self._line(name, row)
-        if frame.glove is not None:
-            raw, present, _ = frame.glove
-            self._glove_raw.append(np.where(np.asarray(present)[:, None], raw, 0).astype(np.uint8))
-        elif self._glove_raw:
-            self._glove_raw.append(np.zeros((2, 256), np.uint8))
         self.frames += 1
 
     def _created(self) -> None:
@@ -187,8 +181,11 @@ class RawEpisodeWriter:
                 finish()
             except Exception as exc:  # noqa: BLE001 - re-raised below, once everything else is closed
                 failure = failure or exc
+        has_glove = GLOVE_FILE in self._streams
         self._videos, self._streams, self._last_images = {}, {}, {}
-        grids = self._close_grids()
+        # the grids from the glove stream as written, read back from the closed file: a recording of any
+        # length holds no glove history in memory
+        grids = write_grids_from_glove(self.folder, self.layout, self.config, sync=self.durable) if has_glove else None
         if failure is not None:
             raise failure
         return grids
@@ -200,13 +197,6 @@ class RawEpisodeWriter:
                 fsync_fd(handle.fileno(), self.folder / name)
         finally:
             handle.close()
-
-    def _close_grids(self) -> PressureGrids | None:
-        if not self._glove_raw:
-            return None
-        raw = np.zeros((self.frames, 2, 256), np.uint8)
-        raw[self.frames - len(self._glove_raw):] = np.stack(self._glove_raw)
-        return _write_grids(self.folder, raw, self.layout, self.config, sync=self.durable)
 
     def __enter__(self) -> RawEpisodeWriter:
         return self

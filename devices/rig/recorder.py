@@ -181,6 +181,12 @@ class Recorder:
             return replace(self._counters, queued=self._queue.qsize())
 
     @property
+    def is_behind(self) -> bool:
+        """More than a quarter of the queue waits for the writer (0.5 s at 30 Hz with the default 60 frames):
+        an owner that can drop work (the live engine) should leave the CPU to the writer until it catches up."""
+        return self._queue.qsize() > self.config.queue_frames // 4
+
+    @property
     def error(self) -> str | None:
         """The writer error that stopped the recording, or None."""
         return self._error

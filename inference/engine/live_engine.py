@@ -24,9 +24,13 @@ ENGINE_NICENESS = 8
 
 @dataclass
 class LiveStats:
+    """submitted: snapshots offered; processed: engine steps; dropped: snapshots never processed (replaced in
+    the mailbox, or skipped); skipped: of those, the ones the owner did not submit (see `LiveEngine.skip`)."""
+
     submitted: int = 0
     processed: int = 0
     dropped: int = 0
+    skipped: int = 0
 
 
 class LiveEngine:
@@ -74,6 +78,14 @@ class LiveEngine:
                 self.stats.dropped += 1
             self._pending = snapshot
             self._wake.notify()
+
+    def skip(self) -> None:
+        """Count a snapshot the owner did not submit (it gave the CPU to work that cannot drop frames) as
+        dropped."""
+        with self._wake:
+            self.stats.submitted += 1
+            self.stats.dropped += 1
+            self.stats.skipped += 1
 
     def call(self, action: Callable[[], None]) -> None:
         """Run `action` on the engine thread before its next step (e.g. reset after a seek, or swap in
