@@ -10,6 +10,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from touchanything.devices.episodes.episode_files import read_json_file
 from touchanything.devices.episodes.episode_loader import find_hdf5_files
 from touchanything.devices.episodes.hdf5_episode import WILOR_VALID_KEYS
 from touchanything.devices.errors import DataError, UserError
@@ -22,14 +23,7 @@ SPLIT_FILE = "split.json"
 def read_split(path: Path) -> dict[str, list[Path]]:
     """Read a split file; relative paths are taken relative to the split file's folder."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise DataError(path, None, "file not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DataError(path, None, f"not a readable JSON file ({exc})") from None
-    except RecursionError:
-        raise DataError(path, None, "not a readable JSON file (nested too deeply)") from None
+    data = read_json_file(path)
     if not isinstance(data, dict):
         raise DataError(path, None, f"expected an object with keys {', '.join(SPLIT_KEYS)}")
     split = {}

@@ -5,6 +5,7 @@ import json
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -131,16 +132,21 @@ def read_masks(path: Path) -> Masks:
     return Masks(masks.astype(np.uint8), obj_ids.astype(np.int32), valid.astype(bool))
 
 
-def read_quality(path: Path) -> dict[str, float]:
-    """`quality_issues.json` → {"left": ratio, "right": ratio} of duplicate wrist frames (−1 if unknown)."""
+def read_json_file(path: Path) -> Any:
+    """The JSON value in `path`; DataError naming the file when it is missing or not readable JSON."""
     try:
-        data = json.loads(Path(path).read_text())
+        return json.loads(Path(path).read_text())
     except FileNotFoundError:
         raise DataError(path, None, "file not found") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DataError(path, None, f"not a readable JSON file ({exc})") from None
     except RecursionError:
         raise DataError(path, None, "not a readable JSON file (nested too deeply)") from None
+
+
+def read_quality(path: Path) -> dict[str, float]:
+    """`quality_issues.json` → {"left": ratio, "right": ratio} of duplicate wrist frames (−1 if unknown)."""
+    data = read_json_file(path)
     ratios = {}
     for side in HANDS:
         try:
