@@ -7,7 +7,8 @@ manylinux x86-64 CPython 3.11 build, whichever machine runs this: the models ins
 its palm-detection and hand-landmark models, checks their sha256 against the digests pinned in
 `touchanything.devices.camera_pose.model_file` and writes the `.task` file (default: inside this Python
 environment, `.venv/share/touchanything/hand_landmarker.task`). A file already there that checks out is
-kept (nothing is downloaded; its time is refreshed, so make sees it up to date). `--wheel` takes a wheel downloaded before (an offline machine).
+kept (nothing is downloaded; its time is refreshed, so make sees it up to date). `--wheel` takes a wheel
+downloaded before (an offline machine).
 """
 from __future__ import annotations
 

@@ -82,6 +82,7 @@ class EngineSession:
             while len(self._recent) > RECENT_FRAMES:
                 self._recent.pop(next(iter(self._recent)))
         self.frames.tick()
+        self._stages.add(snapshot.stage_ms)
         if self.live is not None:
             images = {v: im for v, im in snapshot.images.items() if v in self.views}
             self.live.submit(dataclasses.replace(snapshot, images=images))
