@@ -3,6 +3,7 @@ round trip from known joints and intrinsics), handedness (labels, mirror, duplic
 smoothing, a hand not found, and the hand-model file (checked digests, built from a wheel, one-line errors)."""
 from __future__ import annotations
 
+import importlib.metadata
 import io
 import shutil
 import zipfile
@@ -193,6 +194,9 @@ def test_the_model_file_is_built_from_the_wheel_and_checked(tmp_path, model_byte
     out = tmp_path / "share" / "hand_landmarker.task"
     build_model(wheel_with(tmp_path, models), out)
     assert read_model(out) == out.read_bytes() and not out.with_name(out.name + ".partial").exists()
+    again = tmp_path / "again.task"
+    build_model(wheel_with(tmp_path, models), again)
+    assert again.read_bytes() == out.read_bytes()  # reproducible: the same wheel, the same file
     with zipfile.ZipFile(out) as bundle:
         assert {name: bundle.read(name) for name in MEMBERS} == {name: models[inside] for name, (inside, _) in MEMBERS.items()}
     changed = dict(models)
@@ -204,3 +208,15 @@ def test_the_model_file_is_built_from_the_wheel_and_checked(tmp_path, model_byte
     assert not out.exists()
     with pytest.raises(UserError, match="not a mediapipe wheel holding the hand models"):
         build_model(wheel_with(tmp_path, {}), out)
+
+
+def test_mediapipe_brings_no_opencv_of_its_own():
+    """mediapipe 0.10.31 requires no OpenCV; a non-headless opencv-python or opencv-contrib-python would
+    overwrite the project's cv2 (opencv-contrib-python-headless)."""
+    requirements = [r.lower() for r in importlib.metadata.requires("mediapipe") or []]
+    assert importlib.metadata.version("mediapipe") == "0.10.31"
+    assert not [r for r in requirements if "opencv" in r], requirements
+    for name in ("opencv-python", "opencv-contrib-python"):
+        with pytest.raises(importlib.metadata.PackageNotFoundError):
+            importlib.metadata.distribution(name)
+    assert importlib.metadata.version("opencv-contrib-python-headless")

