@@ -118,7 +118,9 @@ def measure_live(video: Path, seconds: float) -> dict:
 def markdown(estimator: dict, rounds: list[dict], seconds: float) -> str:
     lines = ["# Hand pose from the camera (2-core CPU)", "",
              "`python benchmarks/camera_pose.py`: a 640×480 video of two bare hands (the reference images moving "
-             "across a background), 30 fps.", "", "## The estimator", "",
+             "across a background), 30 fps. The machine's 2 cores are shared with other programs (the load average "
+             "of each live round is listed): wall times include waiting for a core; CPU times are the estimator's "
+             "own work (all of MediaPipe's threads).", "", "## The estimator", "",
              "| frames | n | wall ms p50 / p90 / p99 | CPU ms p50 / p90 |", "|---|---|---|---|"]
     for name, case in estimator["cases"].items():
         wall, cpu = case["wall_ms"], case["cpu_ms"]

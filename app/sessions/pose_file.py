@@ -39,12 +39,18 @@ def write_pose_file(video: Path, out: Path, config: CameraPoseConfig = CameraPos
             raise UserError(f"{out}: cannot write ({exc.strerror})") from None
         summary = ReplaySummary()
         progress(0, episode.num_frames)
-        with handle, contextlib.closing(source):
-            for snapshot in source:
-                summary.add_pose(snapshot)
-                summary.frames += 1
-                handle.write(json_line(hands_row(snapshot.frame_index, snapshot.joints.reshape(2, 21, 3),
-                                                 snapshot.joints_valid)))
-                progress(summary.frames, episode.num_frames)
+        try:
+            with handle, contextlib.closing(source):
+                for snapshot in source:
+                    summary.add_pose(snapshot)
+                    summary.frames += 1
+                    handle.write(json_line(hands_row(snapshot.frame_index, snapshot.joints.reshape(2, 21, 3),
+                                                     snapshot.joints_valid)))
+                    progress(summary.frames, episode.num_frames)
+        except BaseException as exc:  # interrupted or failed: no half file is left behind
+            partial.unlink(missing_ok=True)
+            if isinstance(exc, OSError):
+                raise UserError(f"{out}: cannot write ({exc.strerror or exc})") from None
+            raise
     os.replace(partial, out)
     return summary
