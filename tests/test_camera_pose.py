@@ -139,6 +139,25 @@ def test_smoothing_weights_the_followed_hand_and_restarts_after_a_loss():
     np.testing.assert_allclose(raw.update([second], 640, 480).joints[0], second.joints, atol=1e-6)
 
 
+@FAST
+@given(st.lists(st.lists(st.tuples(st.sampled_from(["Left", "Right"]), st.floats(0.0, 1.0), st.floats(-200, 840)),
+                         max_size=3), min_size=1, max_size=12),
+       st.booleans(), st.floats(0.0, 0.95), st.integers(1, 6))
+def test_any_sequence_of_detections_gives_well_formed_hands(frames, mirror, smoothing, handedness_frames):
+    """Whatever MediaPipe reports frame after frame: each hand is either valid with finite joints and a
+    confidence, or invalid with zeros; never more hands than detections."""
+    tracks = HandTracks(mirror, smoothing, handedness_frames)
+    for frame in frames:
+        out = tracks.update([detection(label, score, x, k) for k, (label, score, x) in enumerate(frame)], 640, 480)
+        assert out.joints.shape == (2, 21, 3) and out.joints.dtype == np.float32 and np.isfinite(out.joints).all()
+        assert int(out.valid.sum()) <= len(frame)
+        for h in range(2):
+            if out.valid[h]:
+                assert 0 <= out.confidence[h] <= 1 and np.isfinite(out.pixels[h]).all()
+            else:
+                assert not out.joints[h].any() and out.confidence[h] == 0 and np.isnan(out.pixels[h]).all()
+
+
 @pytest.mark.parametrize("settings_, message", [({"smoothing": 1.0}, "smoothing must lie in [0, 1)"),
                                                 ({"smoothing": float("nan")}, "smoothing"),
                                                 ({"handedness_frames": 0}, "handedness_frames must be at least 1")])
