@@ -1,18 +1,21 @@
 # Two user-facing targets: `make demo` and `make test`. Both bootstrap .venv idempotently:
-# a second run finds the stamp newer than pyproject.toml and installs nothing.
+# a second run finds the stamp newer than pyproject.toml and installs nothing. Both also build the
+# hand-landmark model file inside .venv from the mediapipe 0.10.21 wheel on the package registry (once: the
+# file is its own stamp; `make hand-model` builds only it; docs/camera_pose.md).
 PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 BASE_STAMP := $(VENV)/.installed-base
 DEV_STAMP := $(VENV)/.installed-dev
+HAND_MODEL := $(VENV)/share/touchanything/hand_landmarker.task
 PYTEST_ARGS ?=
 
-.PHONY: demo test
+.PHONY: demo test hand-model
 
-demo: $(BASE_STAMP)
+demo: $(BASE_STAMP) $(HAND_MODEL)
 	$(VENV)/bin/touchanything demo
 
-test: $(DEV_STAMP) xvfb
+test: $(DEV_STAMP) $(HAND_MODEL) xvfb
 	$(VENV)/bin/ruff check .
 	$(PY) -m pytest $(PYTEST_ARGS)
 
@@ -26,6 +29,11 @@ $(BASE_STAMP): pyproject.toml | $(VENV)/bin/python
 $(DEV_STAMP): pyproject.toml $(BASE_STAMP)
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $@
+
+hand-model: $(HAND_MODEL)
+
+$(HAND_MODEL): scripts/build_hand_model.py devices/camera_pose/model_file.py | $(BASE_STAMP)
+	$(PY) scripts/build_hand_model.py --out $@
 
 # The dashboard tests need an X virtual framebuffer; install it when missing and running as root.
 .PHONY: xvfb

@@ -14,6 +14,7 @@ from touchanything.app.commands import (
     grids_command,
     info_command,
     live_command,
+    pose_command,
     record_command,
     replay_command,
     simulate_command,
@@ -23,7 +24,8 @@ from touchanything.app.commands import (
 from touchanything.devices.errors import UserError
 
 COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command, train_command,
-            eval_command, replay_command, live_command, record_command, devices_command, export_onnx_command, bench_command)
+            eval_command, replay_command, pose_command, live_command, record_command, devices_command, export_onnx_command,
+            bench_command)
 
 
 def build_parser() -> argparse.ArgumentParser:

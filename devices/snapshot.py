@@ -13,6 +13,9 @@ TRACKER_ROLES = ("chest", "left_wrist", "right_wrist")
 FPS = 30
 FRAME_PERIOD_US = 1_000_000 // FPS
 """Official synthetic timestamps: t_i = i * 33333 µs."""
+POSE_FROM_WILOR, POSE_FROM_ROKOKO, POSE_FROM_MOCAP, POSE_FROM_CAMERA = (
+    "WiLoR file", "Rokoko file", "mocap", "camera estimate")
+"""A Snapshot's `pose_source`: recorded WiLoR or Rokoko poses, the live mocap, the ego camera's estimate."""
 
 
 @dataclass
@@ -35,6 +38,10 @@ class Snapshot:
     mocap_joints: (42, 3) float32 hand-mocap joints before any transform (Rokoko Studio axes, metres),
         zeros where invalid, with mocap_valid (2,) bool; None when the rig has no mocap.
     source_age_ms: {source: age of the sample used (or refused as stale)} at `t_us`, for live sources.
+    pose_source: where `joints` come from (one of the POSE_FROM_* names), "" when nothing provides them.
+    joints_confidence: (2,) float32 per-hand confidence of an estimated pose in [0, 1] (0 where not found);
+        None for recorded and mocap poses.
+    stage_ms: {stage: ms} time spent on this snapshot by stages before the engine (e.g. "hand pose").
     """
 
     frame_index: int
@@ -51,3 +58,6 @@ class Snapshot:
     mocap_joints: np.ndarray | None = None
     mocap_valid: np.ndarray | None = None
     source_age_ms: dict[str, float] = field(default_factory=dict)
+    pose_source: str = ""
+    joints_confidence: np.ndarray | None = None
+    stage_ms: dict[str, float] = field(default_factory=dict)

@@ -11,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from helpers.hand_video import write_hand_video
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import MODELS_DIR, sample_episodes
 from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, default_checkpoint
@@ -19,6 +20,7 @@ from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.dashboard.dashboard import CELL, MAPS, Dashboard
+from touchanything.viz.hand_projection import HAND_COLOURS, pose_label
 from touchanything.viz.pressure_panel import AXES, BACKGROUND, MAP_GAP
 
 NANO = ModelChoice(default_checkpoint())
@@ -170,6 +172,24 @@ def test_a_checkpoint_for_another_preset_keeps_the_dashboard_running(dashboard_d
     assert result["message"].startswith("no prediction:") and "best_model.pth" in result["message"]
     assert result["frames"] >= 60 and result["pressure"] is None and result["snapshot"]
     assert result["truth"] is None and result["model"] == "no model"
+
+
+def replay_plain_video(video: Path, shot: Path) -> dict:
+    dashboard = replay_in_dashboard(video, NANO, VIEW_NAMES, max_frames=90, screenshot=shot)
+    state = dashboard.session.state()
+    return {**summary(dashboard), "pose": pose_label(dashboard.shown["snapshot"]), "stage_ms": state.stage_ms,
+            "status": state.prediction.status, "hands": state.prediction.hands_predicted}
+
+
+def test_a_plain_video_shows_the_estimated_skeleton_and_where_the_pose_comes_from(dashboard_display, tmp_path):
+    video = write_hand_video(tmp_path / "hands.mp4", frames=24, empty=4)
+    result = in_fresh_process(replay_plain_video, video, tmp_path / "s.png")
+    assert result["pose"].startswith("pose: camera estimate (left 0.") and ", right 0." in result["pose"]
+    assert result["stage_ms"]["hand pose"] > 0 and result["hands"] == (True, True) and result["status"] == "ok"
+    assert result["truth"] is None and result["cumulative"] is None
+    ego = crop(cv2.imread(str(tmp_path / "s.png"))[..., ::-1], result["rects"]["ego"]).astype(int)
+    for colour in HAND_COLOURS:  # both skeletons are drawn over the head camera
+        assert (np.abs(ego - colour).max(axis=-1) < 30).sum() > 15, colour
 
 
 def live_run(recordings: Path) -> dict:

@@ -16,10 +16,12 @@ import pytest
 from helpers.simulated_rig import glove_sample
 from touchanything.app.cli import main
 from touchanything.app.sessions.scene import read_scene
+from touchanything.devices.camera_pose.estimator import CameraPoseConfig
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.video_io import VideoWriter
 from touchanything.devices.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, UserError
 from touchanything.devices.hardware import registry
+from touchanything.devices.hardware.camera_hands import CameraHands
 from touchanything.devices.hardware.jq_glove import JQGlove, JQGloveConfig
 from touchanything.devices.hardware.oak_camera import OakCamera, OakCameraConfig
 from touchanything.devices.hardware.opencv_camera import OpenCVCamera, OpenCVCameraConfig
@@ -130,7 +132,8 @@ def test_not_connected_is_a_typed_error():
 
 
 def test_the_registry_maps_each_kind_to_its_config_and_device():
-    assert set(registry.KINDS) == {"opencv", "oak", "jq", "rokoko", "openvr"}
+    assert set(registry.KINDS) == {"opencv", "oak", "jq", "rokoko", "openvr", "camera"}
+    assert registry.kinds_for("hands") == ("rokoko", "camera")
     assert registry.kinds_for("camera") == ("opencv", "oak")
     examples = [OpenCVCameraConfig(0), OakCameraConfig(), JQGloveConfig("/dev/ttyACM0", "left"), RokokoConfig(),
                 OpenVRTrackersConfig({"LHR-1": "chest"})]
@@ -139,6 +142,11 @@ def test_the_registry_maps_each_kind_to_its_config_and_device():
         device = registry.create_device(config)
         assert isinstance(config, kind.config) and isinstance(device, ThreadedSource) and device.config is config
         assert type(device) is kind.device and registry.device_kind(kind.name, kind.role) is kind
+    ego = OpenCVCamera(OpenCVCameraConfig(0))
+    hands = registry.create_device(CameraPoseConfig(), {"ego": ego})
+    assert type(hands) is CameraHands and hands.camera is ego and registry.kind_of(hands.config).reads == "ego"
+    with pytest.raises(UserError, match=r'^hands kind "camera" needs the ego camera \(\[cameras.ego\]\)$'):
+        registry.create_device(CameraPoseConfig())
     with pytest.raises(UserError, match="^kind must be \"opencv\" or \"oak\", got 'jq'$"):
         registry.device_kind("jq", "camera")
     with pytest.raises(TypeError, match="no device kind"):
@@ -158,7 +166,7 @@ def test_scene_sections_are_read_through_the_registry(tmp_path):
     assert read.gloves["right"] == JQGloveConfig(str(tmp_path / "ports" / "right"), "right", reconnect_backoff_s=(0.2, 1.0))
     assert read.trackers == OpenVRTrackersConfig({"LHR-1": "chest"})
     for text, message in [('[gloves.left]\nkind = "oak"\nport = "x"\n', '[gloves.left] kind must be "jq", got \'oak\''),
-                          ('[hands]\nsource = "leap"\n', '[hands] source must be "rokoko", got \'leap\''),
+                          ('[hands]\nsource = "leap"\n', '[hands] source must be "rokoko" or "camera", got \'leap\''),
                           ('[trackers]\nkind = "openxr"\n', '[trackers] kind must be "openvr"'),
                           ("[trackers]\nrate_hz = 30\n", "[trackers] needs a roles setting"),
                           ("[gloves.left]\nport = 'x'\nreconnect_backoff_s = [2, 1]\n", "back-off")]:

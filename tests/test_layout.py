@@ -14,6 +14,7 @@ ROOT = Path(__file__).resolve().parents[1]
 FOLDERS = ("app", "devices", "inference", "viz")
 LAYERS = (
     ("touchanything.devices",),
+    ("touchanything.devices.camera_pose",),
     ("touchanything.devices.episodes", "touchanything.devices.hardware"),
     ("touchanything.devices.rig",),
     ("touchanything.devices.sim",),

@@ -11,11 +11,15 @@ The front door for scripting the tool. The bundled model on the bundled sample:
         predictions = [p for snapshot in replay for p in engine.step(snapshot)]
     ...
 
+Any plain video works too: `open_episode("clip.mp4")` is an ego-only episode and
+`ReplayConfig(pose_source="camera")` estimates the hands from its frames (`HandPoseEstimator`, bare hands).
+
 Records: `Snapshot` in (one rig frame: images per view, 42 joints, raw pressure), `Prediction` out ((2, 21, 21)
 pressure in [0, 1], NaN outside the `TactileLayout`). The subpackages (`touchanything.devices`, `.inference`,
 `.viz`, `.app`) hold the rest; what is listed in `__all__` here is the public, stable surface.
 """
 from touchanything.app.sessions.bundled import bundled_models, sample_episodes
+from touchanything.devices.camera_pose.estimator import CameraPoseConfig, HandPoseEstimator
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.errors import DataError, UserError
@@ -41,6 +45,8 @@ __all__ = [
     "StreamingEngine", "EngineConfig", "LiveEngine", "Snapshot", "Prediction", "VIEW_NAMES",
     # episodes
     "open_episode", "Episode", "ReplaySource", "ReplayConfig", "sample_episodes", "TactileLayout",
+    # hand pose estimated from the camera (bare hands)
+    "HandPoseEstimator", "CameraPoseConfig",
     # the official metrics and evaluation
     "compute_tactile_metrics", "MetricAccumulator", "aggregate", "METRICS", "ALL_METRICS", "predict_trajectory", "evaluate",
     # errors a user can act on

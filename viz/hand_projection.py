@@ -1,30 +1,21 @@
-"""2D hand skeletons with pressure drawn onto the joints, in the head-camera image.
+"""2D hand skeletons with pressure drawn onto the joints, in the head-camera image, and the line saying where
+the pose comes from.
 
-WiLoR joints live in the head-camera frame with WiLoR's camera: focal length 5000/256 · max(W, H) pixels
-and the principal point at the image centre (the official convention), so they project with a pinhole.
+WiLoR joints live in the head-camera frame with WiLoR's camera (`devices.hand_pose.project_wilor`), so they
+project with a pinhole.
 """
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
+from touchanything.devices.hand_pose import project_wilor
+from touchanything.devices.snapshot import HANDS, POSE_FROM_CAMERA, Snapshot
 from touchanything.viz.colormap import PRESSURE_LUT, apply
 from touchanything.viz.hand_regions import BONES, joint_pressure
 
-WILOR_FOCAL_PER_PIXEL = 5000.0 / 256.0
 HAND_COLOURS = ((90, 200, 255), (255, 170, 90))
 """Skeleton colour per hand (left, right)."""
-
-
-def project_wilor(joints: np.ndarray, width: int, height: int) -> np.ndarray:
-    """(..., 3) head-camera joints → (..., 2) pixel coordinates; NaN where z ≤ 0 or not finite."""
-    joints = np.asarray(joints, np.float64)
-    focal = WILOR_FOCAL_PER_PIXEL * max(width, height)
-    z = joints[..., 2]
-    ok = np.isfinite(joints).all(axis=-1) & (z > 1e-6)
-    safe = np.where(ok, z, 1.0)
-    uv = np.stack([focal * joints[..., 0] / safe + width / 2, focal * joints[..., 1] / safe + height / 2], axis=-1)
-    return np.where(ok[..., None], uv, np.nan)
 
 
 def draw_hands(image: np.ndarray, joints: np.ndarray, valid: np.ndarray, pressure: np.ndarray | None) -> np.ndarray:
@@ -50,3 +41,15 @@ def draw_hands(image: np.ndarray, joints: np.ndarray, valid: np.ndarray, pressur
             cv2.circle(out, pts[j], radii[hand][j], colours[hand][j], -1, cv2.LINE_AA)
             cv2.circle(out, pts[j], radii[hand][j], (0, 0, 0), 1, cv2.LINE_AA)
     return out
+
+
+def pose_label(snapshot: Snapshot | None) -> str:
+    """Where the snapshot's hand pose comes from and each hand's state, e.g. "pose: camera estimate (left
+    0.94, right not found)", "pose: WiLoR file (left ok, right invalid)", "pose: none"."""
+    if snapshot is None or not snapshot.pose_source:
+        return "pose: none"
+    missing = "not found" if snapshot.pose_source == POSE_FROM_CAMERA else "invalid"
+    confidence = snapshot.joints_confidence
+    hands = [f"{hand} {missing}" if not snapshot.joints_valid[h] else
+             f"{hand} {'ok' if confidence is None else f'{float(confidence[h]):.2f}'}" for h, hand in enumerate(HANDS)]
+    return f"pose: {snapshot.pose_source} ({', '.join(hands)})"

@@ -1,6 +1,7 @@
 """One frame of the replay comparison video: the cameras (the head camera with the hand skeletons and the
 shown pressure on their joints), ground truth | prediction | error maps, a bottom strip (rolling metrics,
-engine time per frame, contact lamps) and a footer with the frame, the prediction's status and the metrics."""
+engine time per frame, contact lamps) and a footer with the frame, where the pose comes from, the prediction's
+status and the metrics."""
 from __future__ import annotations
 
 import math
@@ -12,7 +13,7 @@ from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.comparison_video import STRIP_HEIGHT, comparison_frame
 from touchanything.viz.contact import contact_badges, hand_contact
-from touchanything.viz.hand_projection import draw_hands
+from touchanything.viz.hand_projection import draw_hands, pose_label
 from touchanything.viz.line_plot import LATENCY_PLOT_MS, PLOT_SAMPLES, line_plot
 
 
@@ -21,8 +22,8 @@ def metric_text(value: float) -> str:
     return "n/a" if math.isnan(value) else f"{value:.3f}"
 
 
-def footer_text(frame_index: int, total: int, prediction: Prediction | None, metrics: RunningMetrics | None) -> str:
-    parts = [f"Frame {frame_index:04d}/{total}"]
+def footer_text(snapshot: Snapshot, total: int, prediction: Prediction | None, metrics: RunningMetrics | None) -> str:
+    parts = [f"Frame {snapshot.frame_index:04d}/{total}", pose_label(snapshot)]
     if prediction is not None:
         parts.append(f"{prediction.status} | {'+'.join(prediction.views_used)} | {prediction.timings_ms.get('total', 0):.0f} ms")
     if metrics is not None:
@@ -50,7 +51,7 @@ class ReplayFrameRenderer:
         images = dict(snapshot.images)
         if "ego" in images:
             images["ego"] = draw_hands(images["ego"], snapshot.joints, snapshot.joints_valid, shown)
-        footer = footer_text(snapshot.frame_index, self.total_frames, latest, metrics)
+        footer = footer_text(snapshot, self.total_frames, latest, metrics)
         return comparison_frame(images, truth, shown, footer, self._strip(shown, truth))
 
     def _add(self, metrics: RunningMetrics | None, prediction: Prediction | None) -> None:

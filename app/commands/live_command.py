@@ -1,5 +1,6 @@
-"""`touchanything live --scene FILE`: the live rig of a scene through the engine into the dashboard, or
-with `--headless` for a fixed time with a status line per second (no display needed)."""
+"""`touchanything live --scene FILE`: the live rig of a scene (the capture rig, the simulated rig, or a webcam
+with the hands estimated from it) through the engine into the dashboard, or with `--headless` for a fixed time
+with a status line per second (no display needed)."""
 from __future__ import annotations
 
 import argparse
@@ -10,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.app.sessions.engine_choice import add_device_argument
+from touchanything.viz.hand_projection import pose_label
 
 SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
 
@@ -53,8 +55,8 @@ def run_headless(session, seconds: float) -> dict:
         prediction = state.prediction
         latency = "-" if prediction is None else f"{prediction.latency_ms:.0f} ms"
         print(f"{time.strftime('%H:%M:%S')}  rig {session.frames.rate():4.1f} Hz  engine {state.engine_fps:4.1f} fps  "
-              f"latency {latency}  " + "  ".join(f"{row.name}: {'ok' if row.connected else 'DOWN'}" for row in state.sources),
-              flush=True)
+              f"latency {latency}  " + "  ".join(f"{row.name}: {'ok' if row.connected else 'DOWN'}" for row in state.sources)
+              + f"  {pose_label(state.snapshot)}", flush=True)
     state = session.state()
     history = state.history.get("latency_ms", np.zeros(0))
     summary = {"snapshots": session.frames.count, "predictions": 0 if session.live is None else session.live.stats.processed,

@@ -1,6 +1,6 @@
-"""`touchanything replay PATH`: an episode through the streaming engine in the dashboard, or with
-`--headless` exported as a comparison video (cameras; ground truth, prediction, error) with running
-metrics and latency."""
+"""`touchanything replay PATH`: an episode (or any plain video, with the hands estimated from its frames)
+through the streaming engine in the dashboard, or with `--headless` exported as a comparison video (cameras;
+ground truth, prediction, error) with running metrics and latency."""
 from __future__ import annotations
 
 import argparse
@@ -26,8 +26,10 @@ def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
-    parser = commands.add_parser("replay", help="replay an episode through the engine in the dashboard, or into a video")
-    parser.add_argument("episode", type=Path, help="raw episode folder or .hdf5 trajectory")
+    parser = commands.add_parser("replay", help="replay an episode or a plain video through the engine in the dashboard, "
+                                                "or into a video")
+    parser.add_argument("episode", type=Path, help="raw episode folder, .hdf5 trajectory, or any video file (an ego-only "
+                                                   "episode: the hands are estimated from its frames)")
     add_engine_arguments(parser)
     parser.add_argument("--headless", action="store_true", help="no window: write the comparison video instead")
     parser.add_argument("--out", type=Path, help="the comparison video to write (.mp4; implies --headless; "
@@ -44,7 +46,9 @@ def selected_views(args: argparse.Namespace) -> tuple[str, ...]:
 
 
 def default_video(path: Path) -> Path:
-    return RECORDINGS / f"{path.resolve().name.removesuffix('.hdf5')}_replay.mp4"
+    """recordings/<trajectory folder, or file name without its suffix>_replay.mp4"""
+    name = path.resolve().name
+    return RECORDINGS / f"{Path(name).stem if path.is_file() else name}_replay.mp4"
 
 
 def run(args: argparse.Namespace) -> int:

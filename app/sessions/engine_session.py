@@ -83,6 +83,7 @@ class EngineSession:
             while len(self._recent) > RECENT_FRAMES:
                 self._recent.pop(next(iter(self._recent)))
         self.frames.tick()
+        self._stages.add(snapshot.stage_ms)
         if self.live is not None and not predict:
             self.live.skip()
         elif self.live is not None:

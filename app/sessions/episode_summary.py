@@ -9,7 +9,7 @@ import numpy as np
 
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_raw_episodes, open_episode
+from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_raw_episodes, is_plain_video, open_episode
 from touchanything.devices.errors import DataError, UserError
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 from touchanything.devices.tactile_layout import TactileLayout
@@ -49,7 +49,8 @@ def _pressure_lines(episode: Episode) -> list[str]:
 def episode_lines(episode: Episode) -> list[str]:
     """Streams, pose and glove coverage, pressure statistics and the problems of one episode."""
     seconds = episode.num_frames / episode.fps if episode.fps else 0.0
-    lines = [f"episode   {episode.scene}/{episode.task}/{episode.trajectory_id}  ({episode.path})",
+    name = "plain video" if is_plain_video(episode) else f"{episode.scene}/{episode.task}/{episode.trajectory_id}"
+    lines = [f"episode   {name}  ({episode.path})",
              f"frames    {episode.num_frames} at {episode.fps:g} fps ({seconds:.1f} s)"]
     views = [f"{v} {s.width}×{s.height} ({s.num_frames} frames)" for v, s in episode.views.items()]
     lines.append("views     " + ("; ".join(views) or "none"))

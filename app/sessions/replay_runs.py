@@ -1,5 +1,6 @@
 """An episode replayed through the engine, the two ways the commands offer: into the dashboard (played in
-real time) or into a comparison video (every frame, headless)."""
+real time) or into a comparison video (every frame, headless). The poses come from the episode's WiLoR file,
+or, for a plain video, are estimated from its frames (`pose_source_for`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,8 +12,9 @@ from touchanything.app.sessions.episode_summary import episode_lines
 from touchanything.app.sessions.replay_export import ReplaySummary, export_replay
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.episode_loader import is_plain_video, open_episode
 from touchanything.devices.errors import UserError
+from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.dashboard.dashboard import Dashboard
 from touchanything.viz.display import display_problem
@@ -29,9 +31,10 @@ def replay_to_video(path: Path, choice: ModelChoice, views: tuple[str, ...], out
         raise UserError(f"{out.parent}: cannot create the output folder ({exc.strerror})") from None
     with open_episode(path) as episode:
         _require_ego(path, episode)
+        source = ReplaySource(episode, ReplayConfig(speed=None, views=views, pose_source=pose_source_for(episode)))
         print("\n".join(episode_lines(episode)))
         with tqdm(total=episode.num_frames, unit="frame", desc="replay") as bar:
-            summary = export_replay(episode, engine, views, out, lambda frame: bar.update(1))
+            summary = export_replay(source, engine, out, lambda frame: bar.update(1))
     print(f"model     {model_label(choice, engine)}, {engine.runtime.capture}")
     print("\n".join(summary.lines()))
     print(f"video     {out}")
@@ -53,11 +56,16 @@ def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...],
         except UserError as exc:
             engine, message = None, f"no prediction: {exc}"
             print(message)
-        session = ReplaySession(episode, engine, choice, message)
+        session = ReplaySession(episode, engine, choice, message, pose_source_for(episode))
         session.set_views(views)
         dashboard = Dashboard(session.start())
         dashboard.run(max_frames, screenshot)
         return dashboard
+
+
+def pose_source_for(episode: Episode) -> str:
+    """"camera" (estimated from the ego view) for a plain video, else "wilor" (the episode's WiLoR file)."""
+    return "camera" if is_plain_video(episode) else "wilor"
 
 
 def _require_ego(path: Path, episode: Episode) -> None:

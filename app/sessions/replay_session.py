@@ -18,13 +18,14 @@ from touchanything.viz.dashboard.dashboard_state import Playback, SourceStatus
 
 
 class ReplaySession(EngineSession):
-    """Start with `start()`, end with `close()`."""
+    """Start with `start()`, end with `close()`. `pose_source`: "wilor" (the episode's file), "rokoko" or
+    "camera" (estimated from the ego view in the player thread, every frame in order)."""
 
     def __init__(self, episode: Episode, engine: StreamingEngine | None, choice: ModelChoice,
-                 message: str = "") -> None:
+                 message: str = "", pose_source: str = "wilor") -> None:
         super().__init__(engine, choice, message)
         self.episode = episode
-        self.source = ReplaySource(episode, ReplayConfig(speed=1.0, hold_at_end=True))
+        self.source = ReplaySource(episode, ReplayConfig(speed=1.0, hold_at_end=True, pose_source=pose_source))
         self._speed = 1.0
         self.truth = None
         if episode.pressure is not None:

@@ -6,7 +6,9 @@
                           "opencv" (source = device index or video file, loop)
     [gloves.<hand>]       hand: left | right; kind = "jq" (the default); port (a stable /dev/serial/by-id
                           path), baudrate
-    [hands]               source = "rokoko" (the default); host, port, actor
+    [hands]               source = "rokoko" (the default; host, port, actor; needs [pose]) or "camera" (hands
+                          estimated from [cameras.ego], bare hands only: mirror, smoothing,
+                          handedness_frames, model)
     [trackers]            kind = "openvr" (the default); rate_hz; [trackers.roles] serial = "chest" |
                           "left_wrist" | "right_wrist"
     [pose]                the calibration that brings mocap joints into the head-camera frame
@@ -31,6 +33,7 @@ from typing import Any
 
 from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint
 from touchanything.app.sessions.scene_values import check_types
+from touchanything.devices.camera_pose.estimator import CameraPoseConfig
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.jq_glove import JQGloveConfig
 from touchanything.devices.hardware.openvr_trackers import OpenVRTrackersConfig
@@ -58,7 +61,7 @@ class Scene:
     clock: RigClockConfig = RigClockConfig()
     cameras: dict[str, CameraConfig] = field(default_factory=dict)
     gloves: dict[str, JQGloveConfig] = field(default_factory=dict)
-    hands: RokokoConfig | None = None
+    hands: RokokoConfig | CameraPoseConfig | None = None
     trackers: OpenVRTrackersConfig | None = None
     pose: dict[str, Any] = field(default_factory=dict)
     model: ModelChoice = field(default_factory=lambda: ModelChoice(default_checkpoint()))
@@ -83,7 +86,7 @@ def read_scene(path: Path) -> Scene:
     base = path.resolve().parent
     try:
         _check_tables(table)
-        return Scene(
+        scene = Scene(
             path=path, clock=_build(RigClockConfig, "clock", table.get("clock", {})),
             cameras={view: _device(f"cameras.{view}", "camera", s, base)
                      for view, s in _named(table, "cameras", VIEW_NAMES).items()},
@@ -95,6 +98,9 @@ def read_scene(path: Path) -> Scene:
             pose=dict(table.get("pose", {})), model=_model(table.get("model", {}), base),
             simulator=_simulator(table["simulator"], table.get("hands", {}), base) if "simulator" in table else None,
             recording=_recording(table.get("recording", {})))
+        if isinstance(scene.hands, CameraPoseConfig) and "ego" not in scene.cameras:
+            raise UserError('[hands] source = "camera" estimates the hands from the ego camera: add [cameras.ego]')
+        return scene
     except UserError as exc:
         raise UserError(f"{path}: {exc}") from None
 

@@ -1,18 +1,27 @@
 """The live rig of a scene: its sources connected in order (a failed connect disconnects the ones already
 up), the simulated rig first when the scene has one, and the 30 Hz rig clock over them. Every device is
-built from its config by the device registry and follows the one device contract (ThreadedSource)."""
+built from its config by the device registry and follows the one device contract (ThreadedSource). The
+hands come from the mocap (through the `[pose]` calibration) or are estimated from the ego camera."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import partial
 
 from touchanything.app.sessions.scene import Scene
+from touchanything.devices.camera_pose.estimator import CameraPoseConfig
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.registry import create_device
 from touchanything.devices.hardware.threaded_source import ThreadedSource
 from touchanything.devices.rig.pose_transform import PoseCalibration, mocap_to_model_frame
 from touchanything.devices.rig.rig_clock import RigClock
-from touchanything.devices.rig.rig_inputs import RigInput, camera_fill, glove_fill, mocap_fill, trackers_fill
+from touchanything.devices.rig.rig_inputs import (
+    RigInput,
+    camera_fill,
+    camera_hands_fill,
+    glove_fill,
+    mocap_fill,
+    trackers_fill,
+)
 from touchanything.devices.sim.device_emulator import SimulatedLiveRig
 
 
@@ -38,9 +47,9 @@ class LiveRig:
         return {source.name: source.device for source in self._sources}
 
     def _plan(self) -> list[_Source]:
-        scene, plan = self.scene, []
+        scene, plan, cameras = self.scene, [], {}
         for view, config in scene.cameras.items():
-            camera = create_device(config)
+            cameras[view] = camera = create_device(config)
             plan.append(_Source(view, camera, RigInput(view, camera, camera_fill(view))))
         for hand, config in scene.gloves.items():
             glove = create_device(config)
@@ -49,7 +58,10 @@ class LiveRig:
             (self.simulator.trackers if self.simulator is not None else None)
         if trackers is not None:
             plan.append(_Source("trackers", trackers, RigInput("trackers", trackers, trackers_fill())))
-        if scene.hands is not None:
+        if isinstance(scene.hands, CameraPoseConfig):
+            hands = create_device(scene.hands, cameras)
+            plan.append(_Source("camera hands", hands, RigInput("camera hands", hands, camera_hands_fill())))
+        elif scene.hands is not None:
             if not scene.pose:
                 raise UserError(f"{scene.path}: [hands] needs a [pose] calibration to bring the mocap joints "
                                 "into the head-camera frame")

@@ -1,11 +1,15 @@
-"""Find and open episodes: raw EgoTouch folders and HDF5 trajectories, alone or under a dataset root."""
+"""Find and open episodes: raw EgoTouch folders and HDF5 trajectories, alone or under a dataset root, and
+any plain video (an ego-only episode without poses or pressure)."""
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.hdf5_episode import open_hdf5_episode
 from touchanything.devices.episodes.raw_episode import is_raw_episode, open_raw_episode
+from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.errors import DataError
 
 HDF5_SUFFIXES = (".hdf5", ".h5")
@@ -18,7 +22,8 @@ def is_hdf5_path(path: Path) -> bool:
 
 
 def open_episode(path: Path) -> Episode:
-    """Open a raw episode folder or an HDF5 trajectory file."""
+    """Open a raw episode folder, an HDF5 trajectory file, or any other file as a plain video
+    (`open_video_episode`)."""
     path = Path(path)
     if not path.exists():
         raise DataError(path, None, "not found")
@@ -28,7 +33,28 @@ def open_episode(path: Path) -> Episode:
         return open_raw_episode(path)
     if is_hdf5_path(path):
         return open_hdf5_episode(path)
-    raise DataError(path, None, "not an episode (expected a raw episode folder or an .hdf5 file)")
+    try:
+        return open_video_episode(path)
+    except DataError as exc:
+        raise DataError(path, None, f"not an episode folder or .hdf5 file, and {exc.problem}") from None
+
+
+def is_plain_video(episode: Episode) -> bool:
+    """An episode opened by `open_video_episode` (a file that is neither a folder nor HDF5)."""
+    return episode.path.is_file() and not is_hdf5_path(episode.path)
+
+
+def open_video_episode(path: Path) -> Episode:
+    """Any video PyAV reads as an episode: its frames as the ego view, at the file's frame rate (timestamps
+    i / fps), no poses, gloves or pressure. DataError (one line) for a file that is not a readable video."""
+    path = Path(path)
+    try:
+        reader = VideoReader(path)
+    except DataError as exc:
+        raise DataError(path, None, f"not a video PyAV can read: {exc.problem}") from None
+    stamps = np.round(np.arange(reader.num_frames) * 1e6 / reader.fps).astype(np.int64)
+    return Episode(path=path, scene="", task="video", trajectory_id=path.stem, num_frames=reader.num_frames,
+                   views={"ego": reader}, timestamps_us=stamps, fps=reader.fps)
 
 
 def find_raw_episodes(root: Path) -> list[Path]:

@@ -24,9 +24,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from touchanything.devices.errors import UserError
-from touchanything.devices.hand_pose import JOINTS_PER_HAND, pose_is_valid
+from touchanything.devices.hand_pose import JOINTS_PER_HAND, pose_is_valid, wilor_focal_px
 
-WILOR_FOCAL_PER_PIXEL = 5000.0 / 256.0
 ORTHONORMAL_TOLERANCE = 1e-3
 """How far tracking_from_mocap's 3×3 part may be from orthonormal (typed-in cosines have ~1e-4 error)."""
 CALIBRATION_KEYS = ("tracking_from_mocap", "camera_in_chest_trans", "camera_in_chest_wxyz", "image_size", "focal_px")
@@ -36,11 +35,6 @@ BAD_CHEST = "chest tracker pose is not finite or has a zero quaternion"
 NOT_TRACKED = "hand not tracked by the mocap"
 NOT_FINITE = "mocap joints are not finite"
 OUT_OF_BOUNDS = "outside the official pose bounds"
-
-
-def wilor_focal_px(width: int, height: int) -> float:
-    """WiLoR's focal length in pixels for a W×H image: 5000/256 · max(W, H)."""
-    return WILOR_FOCAL_PER_PIXEL * max(width, height)
 
 
 def wilor_from_camera(joints: np.ndarray, depth_scale: float) -> np.ndarray:

@@ -2,6 +2,11 @@
 fast as possible, with seek, loop, a views subset and a choice of pose source, and the transport controls
 of a player (pause, resume, single step, speed change, close) callable from another thread.
 
+Pose sources: the episode's WiLoR or Rokoko stream, or "camera": the hands estimated from the ego view,
+frame by frame in the iterating thread (`touchanything.devices.camera_pose`), with the frames' own
+timestamps, so a replay gives the same poses every time; a frame that does not follow the previous one
+(start, seek, loop) starts the estimator afresh.
+
 Pacing keeps an absolute schedule (frame k is due at anchor + k / (fps · speed)), so a late frame is
 released at once and the next ones catch up: no drift accumulates. Seek, resume and a speed change
 re-anchor the schedule.
@@ -15,17 +20,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from touchanything.devices.camera_pose.estimator import CameraPoseConfig, HandPoseEstimator, hands_found
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import TRACKER_ROLES, VIEW_NAMES, Snapshot
+from touchanything.devices.snapshot import POSE_FROM_CAMERA, POSE_FROM_ROKOKO, POSE_FROM_WILOR, TRACKER_ROLES, VIEW_NAMES, Snapshot
 
-POSE_SOURCES = ("wilor", "rokoko")
+POSE_SOURCES = ("wilor", "rokoko", "camera")
+FILE_POSES = {"wilor": POSE_FROM_WILOR, "rokoko": POSE_FROM_ROKOKO}
 
 
 @dataclass(frozen=True)
 class ReplayConfig:
     """speed: real-time factor (2.0 = twice as fast), None = as fast as possible. hold_at_end: at the end
-    of the episode pause (a player waiting for seek or play) instead of ending the iteration."""
+    of the episode pause (a player waiting for seek or play) instead of ending the iteration. pose_source:
+    "wilor", "rokoko" (the episode's streams) or "camera" (estimated from the ego view with `camera_pose`)."""
 
     speed: float | None = 1.0
     loop: bool = False
@@ -33,6 +41,7 @@ class ReplayConfig:
     pose_source: str = "wilor"
     start_frame: int = 0
     hold_at_end: bool = False
+    camera_pose: CameraPoseConfig = CameraPoseConfig()
 
 
 def check_config(config: ReplayConfig, episode: Episode) -> None:
@@ -41,7 +50,7 @@ def check_config(config: ReplayConfig, episode: Episode) -> None:
     if unknown:
         raise UserError(f"unknown view(s) {', '.join(unknown)}; choose from {', '.join(VIEW_NAMES)}")
     if config.pose_source not in POSE_SOURCES:
-        raise UserError(f"unknown pose source {config.pose_source!r}; choose wilor or rokoko")
+        raise UserError(f"unknown pose source {config.pose_source!r}; choose {', '.join(POSE_SOURCES)}")
     check_speed(config.speed)
     if not 0 <= config.start_frame < max(episode.num_frames, 1):
         raise UserError(f"start frame {config.start_frame} is outside the episode (0–{episode.num_frames - 1})")
@@ -54,7 +63,9 @@ def check_speed(speed: float | None) -> None:
 
 class ReplaySource:
     """Iterate to get Snapshots; `seek`, `pause`, `resume`, `step`, `set_speed` and `close` may be called
-    from another thread while iterating. While paused the iterator waits (a `step` releases one frame)."""
+    from another thread while iterating. While paused the iterator waits (a `step` releases one frame).
+    With the camera pose source, making it loads the hand model (UserError when missing) and `close()`
+    releases it."""
 
     def __init__(self, episode: Episode, config: ReplayConfig = ReplayConfig(),
                  clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep) -> None:
@@ -68,6 +79,9 @@ class ReplaySource:
         self._paused = False
         self._steps = 0
         self._closed = False
+        self._estimator = HandPoseEstimator(config.camera_pose) if config.pose_source == "camera" else None
+        self._estimator_lock = threading.Lock()
+        self._estimated = -1
 
     @property
     def position(self) -> int:
@@ -111,10 +125,14 @@ class ReplaySource:
             self._lock.notify_all()
 
     def close(self) -> None:
-        """End the iteration (a waiting iterator returns at once)."""
+        """End the iteration (a waiting iterator returns at once) and release the hand estimator (after the
+        iterating thread's current frame)."""
         with self._lock:
             self._closed = True
             self._lock.notify_all()
+        if self._estimator is not None:
+            with self._estimator_lock:
+                self._estimator.close()
 
     def _wait_while_paused(self) -> bool:
         """False when closed; consumes one step when paused."""
@@ -164,14 +182,10 @@ class ReplaySource:
             status[view] = "ok" if image is not None else ("absent" if source is None else "no frame")
             if image is not None:
                 images[view] = image
-        hands = ep.hands(self.config.pose_source)
-        status["pose"] = self.config.pose_source if hands is not None else "absent"
-        joints = hands.joints[index].reshape(42, 3) if hands else np.zeros((42, 3), np.float32)
-        valid = hands.valid[index].copy() if hands else np.zeros(2, bool)
         glove, mocap = ep.glove, ep.rokoko
         status["glove"] = "ok" if glove is not None else "absent"
         return Snapshot(
-            frame_index=index, t_us=int(self._clock() * 1e6), images=images, joints=joints, joints_valid=valid,
+            frame_index=index, t_us=int(self._clock() * 1e6), images=images, **self._pose(index, images, status),
             pressure_raw=glove.raw[index] if glove is not None else None,
             pressure_grid=ep.pressure.grids[index] if ep.pressure is not None else None,
             imu_wxyz=glove.quat_wxyz[index] if glove is not None else None,
@@ -182,3 +196,28 @@ class ReplaySource:
             mocap_joints=mocap.joints[index].reshape(42, 3) if mocap is not None else None,
             mocap_valid=mocap.valid[index].copy() if mocap is not None else None,
         )
+
+    def _pose(self, index: int, images: dict[str, np.ndarray], status: dict[str, str]) -> dict:
+        """The Snapshot's pose fields for frame `index` from the configured source; `status["pose"]` says
+        where they come from, or why there are none."""
+        none = {"joints": np.zeros((42, 3), np.float32), "joints_valid": np.zeros(2, bool)}
+        if self._estimator is None:
+            hands = self.episode.hands(self.config.pose_source)
+            status["pose"] = self.config.pose_source if hands is not None else "absent"
+            if hands is None:
+                return none
+            return {"joints": hands.joints[index].reshape(42, 3), "joints_valid": hands.valid[index].copy(),
+                    "pose_source": FILE_POSES[self.config.pose_source]}
+        if "ego" not in images:
+            status["pose"] = "camera: no ego image"
+            return {**none, "pose_source": POSE_FROM_CAMERA}
+        with self._estimator_lock:
+            if self._closed:
+                status["pose"] = "camera: closed"
+                return {**none, "pose_source": POSE_FROM_CAMERA}
+            if index != self._estimated + 1:
+                self._estimator.reset()
+            self._estimated = index
+            estimate = self._estimator.estimate(images["ego"], int(self.episode.timestamps_us[index]) // 1000)
+        status["pose"] = f"camera: {hands_found(estimate.valid)}"
+        return estimate.snapshot_fields()

@@ -12,6 +12,10 @@ returns, its fresh readings are used again:
 - `trackers_fill()`: `trackers` = the reading's poses by role; without a fresh reading, no trackers.
 - `mocap_fill(to_model)`: `mocap_joints` / `mocap_valid` = the mocap hands, and `joints` / `joints_valid` =
   `to_model(mocap hands, present, trackers)`, the model's input; without a fresh reading zeros, invalid.
+- `camera_hands_fill()`: the hands estimated from the ego camera (`CameraHandsReading`): `joints`,
+  `joints_valid`, `joints_confidence`, the estimator's time in `stage_ms`, and `images["ego"]` = the very
+  frame they were estimated in (so the picture and the skeleton agree); without a fresh reading the camera's
+  newest frame stays and the hands are invalid.
 
 The glove arrays exist as soon as the rig has a glove input, so a missing glove gives a zero row. Fills
 run in the order given, except that fills reading the trackers (`mocap_fill`) run after all the others.
@@ -25,7 +29,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from touchanything.devices.hand_pose import JOINTS_PER_HAND
-from touchanything.devices.snapshot import HANDS, VIEW_NAMES, Snapshot
+from touchanything.devices.snapshot import HANDS, POSE_FROM_CAMERA, POSE_FROM_MOCAP, VIEW_NAMES, Snapshot
 
 MocapToModel = Callable[[np.ndarray, np.ndarray, dict[str, np.ndarray]], tuple[np.ndarray, np.ndarray]]
 """(mocap joints (2, 21, 3) float32, hands present (2,) bool, trackers {role: (7,)}) → (joints (2, 21, 3)
@@ -56,6 +60,9 @@ class SnapshotParts:
     imu_wxyz: np.ndarray | None = None
     glove_present: np.ndarray | None = None
     trackers: dict[str, np.ndarray] = field(default_factory=dict)
+    pose_source: str = ""
+    joints_confidence: np.ndarray | None = None
+    stage_ms: dict[str, float] = field(default_factory=dict)
 
     def gloves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(pressure_raw (2, 256) uint8, imu_wxyz (2, 4) float32, glove_present (2,) bool), zeros at first."""
@@ -72,7 +79,8 @@ class SnapshotParts:
             joints=self.joints.reshape(2 * JOINTS_PER_HAND, 3), joints_valid=self.joints_valid,
             pressure_raw=self.pressure_raw, imu_wxyz=self.imu_wxyz, trackers=self.trackers, source_status=status,
             glove_present=self.glove_present, mocap_joints=mocap, mocap_valid=self.mocap_valid,
-            source_age_ms=ages_ms,
+            source_age_ms=ages_ms, pose_source=self.pose_source, joints_confidence=self.joints_confidence,
+            stage_ms=self.stage_ms,
         )
 
 
@@ -136,6 +144,7 @@ def mocap_fill(to_model: MocapToModel) -> Fill:
     def apply(reading: Any, parts: SnapshotParts) -> None:
         parts.mocap_joints = np.zeros((2, JOINTS_PER_HAND, 3), np.float32)
         parts.mocap_valid = np.zeros(2, bool)
+        parts.pose_source = POSE_FROM_MOCAP
         if reading is None:
             return
         mocap, present = reading.frame.joints, np.asarray(reading.frame.hands_present, bool)
@@ -145,6 +154,20 @@ def mocap_fill(to_model: MocapToModel) -> Fill:
         parts.joints = np.where(parts.joints_valid[:, None, None], np.asarray(joints, np.float32), 0).astype(np.float32)
 
     return Fill(apply, reads_trackers=True)
+
+
+def camera_hands_fill() -> Fill:
+    """A CameraHandsReading's estimate as the model's joints, and its frame as `images["ego"]`."""
+
+    def apply(reading: Any, parts: SnapshotParts) -> None:
+        if reading is None:
+            parts.pose_source, parts.joints_confidence = POSE_FROM_CAMERA, np.zeros(2, np.float32)
+            return
+        for name, value in reading.estimate.snapshot_fields().items():
+            setattr(parts, name, value.reshape(2, JOINTS_PER_HAND, 3) if name == "joints" else value)
+        parts.images["ego"] = reading.image
+
+    return Fill(apply)
 
 
 def fill_order(inputs: Sequence[RigInput]) -> list[RigInput]:

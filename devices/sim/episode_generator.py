@@ -10,7 +10,8 @@ import numpy as np
 from touchanything.devices.episodes.episode_files import write_camera_matrices
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.episodes.raw_episode import CAMERA_FILE
-from touchanything.devices.rig.pose_transform import wilor_focal_px, wilor_from_camera
+from touchanything.devices.hand_pose import wilor_focal_px
+from touchanything.devices.rig.pose_transform import wilor_from_camera
 from touchanything.devices.sim.cameras import HEIGHT, WIDTH, head_camera, wrist_camera
 from touchanything.devices.sim.catalogue import BIMANUAL_ACTIONS, CATALOGUE, SCENES, UNSEEN_OBJECTS
 from touchanything.devices.sim.hand_model import hand_state

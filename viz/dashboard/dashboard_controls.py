@@ -9,15 +9,19 @@ from typing import Protocol
 import dearpygui.dearpygui as dpg
 import numpy as np
 
+from touchanything.devices.camera_pose.estimator import STAGE as POSE_STAGE
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.comparison_video import VIEW_LABELS
 from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState, SourceStatus
+from touchanything.viz.hand_projection import pose_label
 
 SPEEDS = ("0.25", "0.5", "1", "2", "4")
 METRIC_ROWS = (("temporal_accuracy", "temporal accuracy"), ("contact_iou", "contact IoU"),
                ("volumetric_iou", "volumetric IoU"), ("mae", "MAE"))
-STAGES = ("preprocess", "encode", "head", "total")
+STAGES = ((POSE_STAGE, "pose"), ("preprocess", "preprocess"), ("encode", "encode"), ("head", "head"),
+          ("total", "total"))
+"""(stage, column title): the hand-pose estimator (camera poses only) and the engine's stages."""
 DEVICE_ROWS = 10
 DEVICE_COLUMNS = (("source", 1.1), ("state", 2.2), ("rate", 0.7), ("age", 0.7), ("drops", 0.6))
 """Device table columns and their relative widths."""
@@ -37,6 +41,7 @@ class ControlledDashboard(Protocol):
 def build_controls(dash: ControlledDashboard) -> None:
     session = dash.session
     dpg.add_text("", tag="model_text")
+    dpg.add_text("", tag="pose_text")
     dpg.add_text("", tag="message_text", wrap=460)
     with dpg.group(tag="transport"):
         with dpg.group(horizontal=True):
@@ -103,12 +108,12 @@ def build_tables() -> None:
                 dpg.add_text("n/a", tag=f"cumulative_{key}")
     dpg.add_text("", tag="performance_text", wrap=460)
     with dpg.table(header_row=True, tag="stage_table"):
-        dpg.add_table_column(label="engine ms")
-        for stage in STAGES:
-            dpg.add_table_column(label=stage)
+        dpg.add_table_column(label="ms")
+        for _, title in STAGES:
+            dpg.add_table_column(label=title)
         with dpg.table_row():
             dpg.add_text("mean of 30")
-            for stage in STAGES:
+            for stage, _ in STAGES:
                 dpg.add_text("-", tag=f"stage_{stage}")
     with dpg.table(header_row=True, tag="device_table", policy=dpg.mvTable_SizingStretchProp):
         for title, weight in DEVICE_COLUMNS:
@@ -124,6 +129,7 @@ def build_tables() -> None:
 def update_tables(state: SessionState, note: str, display_fps: float) -> None:
     """Refresh the texts and tables from `state`; `note` (the dashboard's own notice) wins over the session's."""
     dpg.set_value("model_text", f"model: {state.model}")
+    dpg.set_value("pose_text", pose_label(state.snapshot))
     dpg.set_value("message_text", note or state.message)
     dpg.configure_item("record_button", label="Stop recording" if state.recording else "Record")
     dpg.set_value("recording_text", state.recording or "")
@@ -137,9 +143,9 @@ def update_tables(state: SessionState, note: str, display_fps: float) -> None:
     for key, _ in METRIC_ROWS:
         dpg.set_value(f"rolling_{key}", _metric(state.rolling, key))
         dpg.set_value(f"cumulative_{key}", _metric(state.cumulative, key))
-    for stage in STAGES:
+    for stage, _ in STAGES:
         value = state.stage_ms.get(stage)
-        dpg.set_value(f"stage_{stage}", "skipped" if value is None else f"{value:.1f}")
+        dpg.set_value(f"stage_{stage}", ("-" if stage == POSE_STAGE else "skipped") if value is None else f"{value:.1f}")
     dpg.set_value("performance_text", _performance_line(state, display_fps))
     rows = state.sources[:DEVICE_ROWS]
     for row in range(DEVICE_ROWS):
