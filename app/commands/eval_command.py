@@ -11,7 +11,7 @@ from tqdm import tqdm
 
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.errors import UserError
-from touchanything.inference.evaluation.evaluation import VIEW_SETS, EvaluationResult, evaluate
+from touchanything.inference.evaluation.evaluation import VIEW_SETS, EvaluationResult, evaluate, vision_share_summary
 from touchanything.inference.evaluation.metrics import DETECTION_METRICS, EVENT_METRICS, METRICS
 from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.torch_device import (
@@ -45,6 +45,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--device", default="auto", help=DEVICE_HELP)
     parser.add_argument("--precision", default="fp32", choices=tuple(PRECISIONS),
                         help="autocast precision (the official script evaluates under fp16 on a GPU; default fp32)")
+    parser.add_argument("--pose-only-baseline", action="store_true",
+                        help="also evaluate each view configuration with every frame black (pose only) and report "
+                             "the share of each metric that vision carries")
     parser.add_argument("--out", type=Path, help="folder for results.json and results.md")
     parser.add_argument("--video", action="store_true", help="also write a comparison video per trajectory into OUT")
     parser.set_defaults(run=run)
@@ -54,22 +57,46 @@ def _cell(value: float) -> str:
     return "n/a" if math.isnan(value) else f"{value:.4f}"
 
 
+def _rows(label: str, summary: dict[str, dict[str, float]], keys: tuple[str, ...]) -> list[str]:
+    return [f"| {label} | {scene} | " + " | ".join(_cell(metrics[k]) for k in keys) + " |" for scene, metrics in summary.items()]
+
+
 def _table(results: list[EvaluationResult], mode: str, keys: tuple[str, ...]) -> list[str]:
-    """A row per view configuration and scene, a column per metric of `keys`."""
+    """A row per view configuration (and its pose-only baseline) and scene, a column per metric of `keys`."""
     lines = ["| views | scene | " + " | ".join(keys) + " |", "|---|---|" + "---|" * len(keys)]
     for result in results:
-        for scene, metrics in result.summary(mode).items():
-            lines.append(f"| {result.views} | {scene} | " + " | ".join(_cell(metrics[k]) for k in keys) + " |")
+        lines += _rows(result.label, result.summary(mode), keys)
+    return lines + [""]
+
+
+def baseline_pairs(results: list[EvaluationResult]) -> list[tuple[EvaluationResult, EvaluationResult]]:
+    """(real, pose-only) results of the same view configuration."""
+    real = {r.views: r for r in results if not r.blank}
+    return [(real[r.views], r) for r in results if r.blank]
+
+
+def _share_table(results: list[EvaluationResult], mode: str) -> list[str]:
+    """The vision share of each metric, a row per view configuration and scene (none without baselines)."""
+    pairs = baseline_pairs(results)
+    if not pairs:
+        return []
+    keys = METRICS + TIMING_COLUMNS
+    lines = [f"### {mode}: share carried by vision (real − pose only) / max(real, pose only); MAE reversed", "",
+             "| views | scene | " + " | ".join(keys) + " |", "|---|---|" + "---|" * len(keys)]
+    for real, blank in pairs:
+        lines += _rows(real.views, vision_share_summary(real, blank, mode), keys)
     return lines + [""]
 
 
 def markdown(results: list[EvaluationResult], split: str) -> str:
     """The paper's Table 2 layout (a row per view configuration and scene), stitched and causal, each followed
-    by the contact-timing metrics the official module computes but does not report."""
+    by the contact-timing metrics the official module computes but does not report, and by the vision share
+    when pose-only baselines were run."""
     lines = [f"# Evaluation on `{split}`", ""]
     for mode, title in (("stitched", "official stitched (average of covering clips)"), ("causal", "causal newest-frame")):
         lines += [f"## {title}", ""] + _table(results, mode, METRICS)
         lines += [f"### {mode}: contact timing (computed officially, not reported)", ""] + _table(results, mode, TIMING_COLUMNS)
+        lines += _share_table(results, mode)
     return "\n".join(lines)
 
 
@@ -96,20 +123,33 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
     return files
 
 
-def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: str, group: ProcessGroup) -> EvaluationResult:
-    """One view configuration; the progress bar (main process) shows encoded frames/s and trajectories done."""
+def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: str, group: ProcessGroup,
+                    blank: bool = False) -> EvaluationResult:
+    """One view configuration (`blank`: its pose-only baseline); the progress bar (main process) shows encoded
+    frames/s and trajectories done."""
     mine = len(range(group.rank, len(files), group.world))
     finished = []
-    with tqdm(unit=" frames", unit_scale=True, desc=f"eval {views}", disable=not group.is_main) as bar:
+    with tqdm(unit=" frames", unit_scale=True, desc=f"eval {views}{' pose only' if blank else ''}",
+              disable=not group.is_main) as bar:
         def done(row, episode, prediction, gt) -> None:
             if args.video:
-                video = args.out / f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}.mp4"
-                write_comparison_video(video, trajectory_frames(episode, prediction.stitched, gt))
+                name = f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}{'_pose_only' if blank else ''}"
+                write_comparison_video(args.out / f"{name}.mp4", trajectory_frames(episode, prediction.stitched, gt))
             finished.append(row)
             bar.set_postfix(trajectories=f"{len(finished)}/{mine}")
 
         return evaluate(model, files, views, args.batch_size, args.ego_path, args.precision, group,
-                        on_trajectory=done, on_frames=bar.update)
+                        on_trajectory=done, on_frames=bar.update, blank=blank)
+
+
+def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> dict:
+    """One entry of results.json; a pose-only baseline also carries its `vision_share` per mode and scene."""
+    record = {"views": result.views, "pose_only": result.blank, "stitched": result.summary("stitched"),
+              "causal": result.summary("causal")}
+    real = next((r for r, b in baseline_pairs(results) if b is result), None)
+    if real is not None:
+        record["vision_share"] = {mode: vision_share_summary(real, result, mode) for mode in ("stitched", "causal")}
+    return {**record, "trajectories": result.rows}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -130,15 +170,15 @@ def run(args: argparse.Namespace) -> int:
             args.out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise UserError(f"{args.out}: cannot create the output folder ({exc.strerror})") from None
-    results = [_evaluate_views(args, model, files, views, group) for views in args.views]
+    blanks = (False, True) if args.pose_only_baseline else (False,)
+    results = [_evaluate_views(args, model, files, views, group, blank) for views in args.views for blank in blanks]
     if not group.is_main:
         return 0
     table = markdown(results, args.split)
     print(table)
     if args.out:
         payload = {"split": args.split, "checkpoint": str(args.checkpoint), "ego_path": args.ego_path,
-                   "results": [{"views": r.views, "stitched": r.summary("stitched"), "causal": r.summary("causal"),
-                                "trajectories": r.rows} for r in results]}
+                   "results": [result_record(r, results) for r in results]}
         (args.out / "results.json").write_text(json.dumps(payload, indent=1, allow_nan=True) + "\n")
         (args.out / "results.md").write_text(table)
         print(f"results: {args.out / 'results.json'}, {args.out / 'results.md'}")
