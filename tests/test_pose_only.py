@@ -32,7 +32,7 @@ from touchanything.inference.evaluation.bench import BenchPlan, BenchSetting, be
 from touchanything.inference.evaluation.bench_data import latency_clip, load_episode
 from touchanything.inference.evaluation.bench_report import markdown as bench_markdown
 from touchanything.inference.evaluation.bench_report import target_checks, write_outputs
-from touchanything.inference.evaluation.evaluation import EvaluationResult, vision_share_summary
+from touchanything.inference.evaluation.evaluation import EvaluationResult, evaluate, vision_share_summary
 from touchanything.inference.evaluation.metrics import ALL_METRICS, COUNT_METRICS
 from touchanything.inference.evaluation.trajectory_prediction import predict_trajectory
 from touchanything.inference.evaluation.vision_share import SHARE_METRICS, vision_share, vision_shares
@@ -82,7 +82,9 @@ def test_eval_pose_only_baseline_on_a_model_that_uses_vision(vision_task, tmp_pa
     argv = ["eval", "--checkpoint", str(checkpoint), "--data", str(data), "--split", "test_seen", "--views", "all", "ego",
             "--pose-only-baseline", "--out", str(tmp_path)]
     assert main(argv) == 0
-    results = json.loads((tmp_path / "results.json").read_text())["results"]
+    payload = json.loads((tmp_path / "results.json").read_text())
+    assert payload["pose_only_checkpoint"] == str(checkpoint)
+    results = payload["results"]
     assert [(r["views"], r["pose_only"]) for r in results] == [("all", False), ("all", True), ("ego", False), ("ego", True)]
     assert "vision_share" not in results[0] and "vision_share" not in results[2]
     real, blank = results[0], results[1]
@@ -95,6 +97,7 @@ def test_eval_pose_only_baseline_on_a_model_that_uses_vision(vision_task, tmp_pa
         assert share["contact_iou"] == pytest.approx((r["contact_iou"] - b["contact_iou"]) / r["contact_iou"])
         assert share["contact_iou"] > 0.5 and share["temporal_accuracy"] > 0.2
     table = (tmp_path / "results.md").read_text()
+    assert f"Pose-only rows: `{checkpoint}` with every frame black." in table
     assert table.count("| all (pose only) | overall |") == 4 and table.count("| ego (pose only) | overall |") == 4
     assert table.count("share carried by vision") == 2 and "inf" not in table
     assert table in capsys.readouterr().out
@@ -162,10 +165,11 @@ def test_bench_pose_only_rows_beside_the_real_ones(vision_task, tmp_path):
 
 
 @pytest.mark.slow
-def test_train_with_blank_images(vision_task, tmp_path, capsys):
+def test_train_with_blank_images_and_evaluate_it_as_the_baseline(vision_task, tmp_path, capsys):
     """`train --blank-images` trains on black frames only: on data where only the frames tell touch, its best
-    validation loss stays well above the real run's."""
-    data, _, real = vision_task
+    validation loss stays well above the real run's. `eval --pose-only-baseline CHECKPOINT` then takes the
+    pose-only rows from that checkpoint."""
+    data, checkpoint, real = vision_task
     config = tmp_path / "nano.yaml"
     config.write_text(yaml.safe_dump(train_config_to_dict(nano_config())))
     assert main(["train", "--config", str(config), "--data", str(data), "--out", str(tmp_path / "blank"), "--blank-images"]) == 0
@@ -173,6 +177,26 @@ def test_train_with_blank_images(vision_task, tmp_path, capsys):
     assert train_config_from_file(tmp_path / "blank" / "config.yaml") == nano_config(blank=True)
     blank_loss = read_checkpoint(tmp_path / "blank" / "best_model.pth")["metrics"]["best_val_loss"]
     assert blank_loss > 1.3 * real.best_val_loss, (blank_loss, real.best_val_loss)
+    pose_only = tmp_path / "blank" / "best_model.pth"
+    argv = ["eval", "--checkpoint", str(checkpoint), "--data", str(data), "--split", "test_seen", "--views", "all",
+            "--pose-only-baseline", str(pose_only), "--out", str(tmp_path / "eval")]
+    assert main(argv) == 0
+    payload = json.loads((tmp_path / "eval" / "results.json").read_text())
+    real_row, blank_row = payload["results"]
+    assert payload["pose_only_checkpoint"] == str(pose_only) and blank_row["pose_only"]
+    expected = evaluate(load_model(pose_only), read_split(data / "split.json")["test_seen"], "all", blank=True)
+    assert json.dumps(blank_row["causal"]) == json.dumps(expected.summary("causal"))
+    real_overall, blank_overall = real_row["causal"]["overall"], blank_row["causal"]["overall"]
+    assert real_overall["temporal_accuracy"] > blank_overall["temporal_accuracy"] + 0.2, (real_overall, blank_overall)
+
+
+def test_a_missing_pose_only_checkpoint_is_one_line(sim_hdf5_root, tiny_checkpoint, tmp_path, capsys):
+    split = next(key for key, files in read_split(sim_hdf5_root / "split.json").items() if files)
+    argv = ["eval", "--checkpoint", str(tiny_checkpoint), "--data", str(sim_hdf5_root), "--split", split,
+            "--pose-only-baseline", str(tmp_path / "none.pth")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "none.pth" in err and "checkpoint not found" in err and len(err.strip().splitlines()) == 1
 
 
 def test_blank_training_clips_keep_every_view_and_show_black(sim_hdf5_root):

@@ -23,6 +23,7 @@ from touchanything.inference.model.torch_device import (
     join_process_group,
     resolve_device,
 )
+from touchanything.inference.model.touch_model import TouchAnything
 from touchanything.viz.comparison_video import comparison_frame, write_comparison_video
 
 TIMING_COLUMNS = DETECTION_METRICS[:3] + EVENT_METRICS[:4]
@@ -45,9 +46,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--device", default="auto", help=DEVICE_HELP)
     parser.add_argument("--precision", default="fp32", choices=tuple(PRECISIONS),
                         help="autocast precision (the official script evaluates under fp16 on a GPU; default fp32)")
-    parser.add_argument("--pose-only-baseline", action="store_true",
-                        help="also evaluate each view configuration with every frame black (pose only) and report "
-                             "the share of each metric that vision carries")
+    parser.add_argument("--pose-only-baseline", nargs="?", const=True, type=Path, metavar="CHECKPOINT",
+                        help="also evaluate each view configuration with every frame black (pose only): this checkpoint, "
+                             "or CHECKPOINT (e.g. one trained with `train --blank-images`); reports the share of each "
+                             "metric that vision carries")
     parser.add_argument("--out", type=Path, help="folder for results.json and results.md")
     parser.add_argument("--video", action="store_true", help="also write a comparison video per trajectory into OUT")
     parser.set_defaults(run=run)
@@ -88,11 +90,13 @@ def _share_table(results: list[EvaluationResult], mode: str) -> list[str]:
     return lines + [""]
 
 
-def markdown(results: list[EvaluationResult], split: str) -> str:
+def markdown(results: list[EvaluationResult], split: str, pose_only: str | None = None) -> str:
     """The paper's Table 2 layout (a row per view configuration and scene), stitched and causal, each followed
     by the contact-timing metrics the official module computes but does not report, and by the vision share
-    when pose-only baselines were run."""
+    when pose-only baselines (of the checkpoint `pose_only`) were run."""
     lines = [f"# Evaluation on `{split}`", ""]
+    if pose_only:
+        lines += [f"Pose-only rows: `{pose_only}` with every frame black.", ""]
     for mode, title in (("stitched", "official stitched (average of covering clips)"), ("causal", "causal newest-frame")):
         lines += [f"## {title}", ""] + _table(results, mode, METRICS)
         lines += [f"### {mode}: contact timing (computed officially, not reported)", ""] + _table(results, mode, TIMING_COLUMNS)
@@ -152,6 +156,15 @@ def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> 
     return {**record, "trajectories": result.rows}
 
 
+def pose_only_model(args: argparse.Namespace, model: TouchAnything, device) -> tuple[Path | None, TouchAnything | None]:
+    """The checkpoint and model of the pose-only rows: none, the evaluated one, or `--pose-only-baseline CHECKPOINT`."""
+    if args.pose_only_baseline is None:
+        return None, None
+    if args.pose_only_baseline is True or args.pose_only_baseline == args.checkpoint:
+        return args.checkpoint, model
+    return args.pose_only_baseline, load_model(args.pose_only_baseline).to(device)
+
+
 def run(args: argparse.Namespace) -> int:
     if args.batch_size < 1:
         raise UserError(f"--batch-size must be at least 1, got {args.batch_size}")
@@ -162,6 +175,7 @@ def run(args: argparse.Namespace) -> int:
     device = resolve_device(args.device, group.local_rank)
     check_precision(args.precision, device)
     model = load_model(args.checkpoint, args.config).to(device)
+    baseline, baseline_model = pose_only_model(args, model, device)
     if group.is_main:
         print(f"eval on {device_label(device)}, {args.precision}, {len(files)} trajectories"
               + (f" over {group.world} processes" if group.world > 1 else ""))
@@ -170,15 +184,18 @@ def run(args: argparse.Namespace) -> int:
             args.out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise UserError(f"{args.out}: cannot create the output folder ({exc.strerror})") from None
-    blanks = (False, True) if args.pose_only_baseline else (False,)
-    results = [_evaluate_views(args, model, files, views, group, blank) for views in args.views for blank in blanks]
+    results = []
+    for views in args.views:
+        results.append(_evaluate_views(args, model, files, views, group))
+        if baseline_model is not None:
+            results.append(_evaluate_views(args, baseline_model, files, views, group, blank=True))
     if not group.is_main:
         return 0
-    table = markdown(results, args.split)
+    table = markdown(results, args.split, baseline and str(baseline))
     print(table)
     if args.out:
         payload = {"split": args.split, "checkpoint": str(args.checkpoint), "ego_path": args.ego_path,
-                   "results": [result_record(r, results) for r in results]}
+                   "pose_only_checkpoint": baseline and str(baseline), "results": [result_record(r, results) for r in results]}
         (args.out / "results.json").write_text(json.dumps(payload, indent=1, allow_nan=True) + "\n")
         (args.out / "results.md").write_text(table)
         print(f"results: {args.out / 'results.json'}, {args.out / 'results.md'}")
