@@ -80,8 +80,10 @@ def overall(entry: dict, mode: str) -> dict[str, float]:
 def test_eval_pose_only_baseline_on_a_model_that_uses_vision(vision_task, tmp_path, capsys):
     data, checkpoint, _ = vision_task
     argv = ["eval", "--checkpoint", str(checkpoint), "--data", str(data), "--split", "test_seen", "--views", "all", "ego",
-            "--pose-only-baseline", "--out", str(tmp_path)]
+            "--pose-only-baseline", "--out", str(tmp_path), "--video"]
     assert main(argv) == 0
+    videos = sorted(p.name for p in tmp_path.glob("*.mp4"))
+    assert len(videos) == 4 and sum(name.endswith("_pose_only.mp4") for name in videos) == 2
     payload = json.loads((tmp_path / "results.json").read_text())
     assert payload["pose_only_checkpoint"] == str(checkpoint)
     results = payload["results"]
