@@ -18,6 +18,7 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
+from conftest import write_episode
 from helpers.vision_task import write_vision_dataset
 from touchanything.app.cli import main
 from touchanything.app.commands.eval_command import markdown
@@ -129,6 +130,13 @@ def test_blank_eval_equals_black_frames_fed_by_hand(sim_hdf5_root, tiny_checkpoi
     rounding = max(np.nanmax(np.abs(blank.stitched - by_hand.stitched)), np.nanmax(np.abs(blank.causal - by_hand.causal)))
     assert rounding < 1e-5  # one black frame encoded, or every frame: the same up to float rounding
     assert np.nanmax(np.abs(real.stitched - blank.stitched)) > 10 * rounding + 1e-6  # the frames reach this model
+
+
+@pytest.mark.parametrize("blank", [False, True])
+def test_a_view_the_episode_lacks_is_the_same_error_with_blank_frames(tmp_path, tiny_checkpoint, blank):
+    folder = write_episode(tmp_path / "Lab" / "press" / "20260101_000000_000", frames=20, views=("ego",))
+    with open_episode(folder) as episode, pytest.raises(UserError, match="view wrist_left is missing"):
+        predict_trajectory(load_model(tiny_checkpoint), episode, ("ego", "wrist_left"), blank=blank)
 
 
 def test_bench_blank_replay_equals_black_snapshots_by_hand():
