@@ -37,6 +37,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--models", type=Path, nargs="+",
                         help="model folders holding best_model.pth (default: every bundled model)")
     parser.add_argument("--frames", type=int, help="accuracy on the first N frames of each episode (quick: 150)")
+    parser.add_argument("--pose-only-baseline", action="store_true",
+                        help="after each setting, its accuracy with every frame black (pose only) and the share of "
+                             "each metric that vision carries")
     add_device_argument(parser)
     parser.set_defaults(run=run)
 
@@ -76,6 +79,9 @@ def run_on_gpu(args: argparse.Namespace, device: torch.device) -> int:
 def run(args: argparse.Namespace) -> int:
     device = resolve_device(args.device)
     if device.type == "cuda":
+        if args.pose_only_baseline:
+            raise UserError("--pose-only-baseline needs accuracy, which the GPU bench (latency only) does not measure; "
+                            "use --device cpu")
         return run_on_gpu(args, device)
     frames = args.frames if args.frames is not None else (150 if args.quick else None)
     if frames is not None and frames < 15:
@@ -93,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
 
     for name, model in models.items():
         episodes = [load_episode(p, model.config.image_size, frames) for p in paths]
-        plan = BenchPlan(args.quick, rounds=4 if args.quick else 20, per_round=10, naive_steps=10 if args.quick else 30)
+        plan = BenchPlan(args.quick, rounds=4 if args.quick else 20, per_round=10, naive_steps=10 if args.quick else 30,
+                         pose_only=args.pose_only_baseline)
         model_rows, naive[name] = bench_model(name, model, episodes, clip, plan, progress)
         rows += model_rows
     torch.manual_seed(0)

@@ -11,7 +11,7 @@ from tqdm import tqdm
 
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.errors import UserError
-from touchanything.inference.evaluation.evaluation import VIEW_SETS, EvaluationResult, evaluate
+from touchanything.inference.evaluation.evaluation import VIEW_SETS, EvaluationResult, evaluate, vision_share_summary
 from touchanything.inference.evaluation.metrics import DETECTION_METRICS, EVENT_METRICS, METRICS
 from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.torch_device import (
@@ -23,6 +23,7 @@ from touchanything.inference.model.torch_device import (
     join_process_group,
     resolve_device,
 )
+from touchanything.inference.model.touch_model import TouchAnything
 from touchanything.viz.comparison_video import comparison_frame, write_comparison_video
 
 TIMING_COLUMNS = DETECTION_METRICS[:3] + EVENT_METRICS[:4]
@@ -45,6 +46,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--device", default="auto", help=DEVICE_HELP)
     parser.add_argument("--precision", default="fp32", choices=tuple(PRECISIONS),
                         help="autocast precision (the official script evaluates under fp16 on a GPU; default fp32)")
+    parser.add_argument("--pose-only-baseline", nargs="?", const=True, type=Path, metavar="CHECKPOINT",
+                        help="also evaluate each view configuration with every frame black (pose only): this checkpoint, "
+                             "or CHECKPOINT (e.g. one trained with `train --blank-images`); reports the share of each "
+                             "metric that vision carries")
     parser.add_argument("--out", type=Path, help="folder for results.json and results.md")
     parser.add_argument("--video", action="store_true", help="also write a comparison video per trajectory into OUT")
     parser.set_defaults(run=run)
@@ -54,22 +59,48 @@ def _cell(value: float) -> str:
     return "n/a" if math.isnan(value) else f"{value:.4f}"
 
 
+def _rows(label: str, summary: dict[str, dict[str, float]], keys: tuple[str, ...]) -> list[str]:
+    return [f"| {label} | {scene} | " + " | ".join(_cell(metrics[k]) for k in keys) + " |" for scene, metrics in summary.items()]
+
+
 def _table(results: list[EvaluationResult], mode: str, keys: tuple[str, ...]) -> list[str]:
-    """A row per view configuration and scene, a column per metric of `keys`."""
+    """A row per view configuration (and its pose-only baseline) and scene, a column per metric of `keys`."""
     lines = ["| views | scene | " + " | ".join(keys) + " |", "|---|---|" + "---|" * len(keys)]
     for result in results:
-        for scene, metrics in result.summary(mode).items():
-            lines.append(f"| {result.views} | {scene} | " + " | ".join(_cell(metrics[k]) for k in keys) + " |")
+        lines += _rows(result.label, result.summary(mode), keys)
     return lines + [""]
 
 
-def markdown(results: list[EvaluationResult], split: str) -> str:
+def baseline_pairs(results: list[EvaluationResult]) -> list[tuple[EvaluationResult, EvaluationResult]]:
+    """(real, pose-only) results of the same view configuration."""
+    real = {r.views: r for r in results if not r.blank}
+    return [(real[r.views], r) for r in results if r.blank]
+
+
+def _share_table(results: list[EvaluationResult], mode: str) -> list[str]:
+    """The vision share of each metric, a row per view configuration and scene (none without baselines)."""
+    pairs = baseline_pairs(results)
+    if not pairs:
+        return []
+    keys = METRICS + TIMING_COLUMNS
+    lines = [f"### {mode}: share carried by vision (real − pose only) / max(real, pose only); MAE reversed", "",
+             "| views | scene | " + " | ".join(keys) + " |", "|---|---|" + "---|" * len(keys)]
+    for real, blank in pairs:
+        lines += _rows(real.views, vision_share_summary(real, blank, mode), keys)
+    return lines + [""]
+
+
+def markdown(results: list[EvaluationResult], split: str, pose_only: str | None = None) -> str:
     """The paper's Table 2 layout (a row per view configuration and scene), stitched and causal, each followed
-    by the contact-timing metrics the official module computes but does not report."""
+    by the contact-timing metrics the official module computes but does not report, and by the vision share
+    when pose-only baselines (of the checkpoint `pose_only`) were run."""
     lines = [f"# Evaluation on `{split}`", ""]
+    if pose_only:
+        lines += [f"Pose-only rows: `{pose_only}` with every frame black.", ""]
     for mode, title in (("stitched", "official stitched (average of covering clips)"), ("causal", "causal newest-frame")):
         lines += [f"## {title}", ""] + _table(results, mode, METRICS)
         lines += [f"### {mode}: contact timing (computed officially, not reported)", ""] + _table(results, mode, TIMING_COLUMNS)
+        lines += _share_table(results, mode)
     return "\n".join(lines)
 
 
@@ -96,20 +127,42 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
     return files
 
 
-def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: str, group: ProcessGroup) -> EvaluationResult:
-    """One view configuration; the progress bar (main process) shows encoded frames/s and trajectories done."""
+def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: str, group: ProcessGroup,
+                    blank: bool = False) -> EvaluationResult:
+    """One view configuration (`blank`: its pose-only baseline); the progress bar (main process) shows encoded
+    frames/s and trajectories done."""
     mine = len(range(group.rank, len(files), group.world))
     finished = []
-    with tqdm(unit=" frames", unit_scale=True, desc=f"eval {views}", disable=not group.is_main) as bar:
+    with tqdm(unit=" frames", unit_scale=True, desc=f"eval {views}{' pose only' if blank else ''}",
+              disable=not group.is_main) as bar:
         def done(row, episode, prediction, gt) -> None:
             if args.video:
-                video = args.out / f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}.mp4"
-                write_comparison_video(video, trajectory_frames(episode, prediction.stitched, gt))
+                name = f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}{'_pose_only' if blank else ''}"
+                write_comparison_video(args.out / f"{name}.mp4", trajectory_frames(episode, prediction.stitched, gt))
             finished.append(row)
             bar.set_postfix(trajectories=f"{len(finished)}/{mine}")
 
         return evaluate(model, files, views, args.batch_size, args.ego_path, args.precision, group,
-                        on_trajectory=done, on_frames=bar.update)
+                        on_trajectory=done, on_frames=bar.update, blank=blank)
+
+
+def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> dict:
+    """One entry of results.json; a pose-only baseline also carries its `vision_share` per mode and scene."""
+    record = {"views": result.views, "pose_only": result.blank, "stitched": result.summary("stitched"),
+              "causal": result.summary("causal")}
+    real = next((r for r, b in baseline_pairs(results) if b is result), None)
+    if real is not None:
+        record["vision_share"] = {mode: vision_share_summary(real, result, mode) for mode in ("stitched", "causal")}
+    return {**record, "trajectories": result.rows}
+
+
+def pose_only_model(args: argparse.Namespace, model: TouchAnything, device) -> tuple[Path | None, TouchAnything | None]:
+    """The checkpoint and model of the pose-only rows: none, the evaluated one, or `--pose-only-baseline CHECKPOINT`."""
+    if args.pose_only_baseline is None:
+        return None, None
+    if args.pose_only_baseline is True or args.pose_only_baseline == args.checkpoint:
+        return args.checkpoint, model
+    return args.pose_only_baseline, load_model(args.pose_only_baseline).to(device)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -122,6 +175,7 @@ def run(args: argparse.Namespace) -> int:
     device = resolve_device(args.device, group.local_rank)
     check_precision(args.precision, device)
     model = load_model(args.checkpoint, args.config).to(device)
+    baseline, baseline_model = pose_only_model(args, model, device)
     if group.is_main:
         print(f"eval on {device_label(device)}, {args.precision}, {len(files)} trajectories"
               + (f" over {group.world} processes" if group.world > 1 else ""))
@@ -130,15 +184,18 @@ def run(args: argparse.Namespace) -> int:
             args.out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise UserError(f"{args.out}: cannot create the output folder ({exc.strerror})") from None
-    results = [_evaluate_views(args, model, files, views, group) for views in args.views]
+    results = []
+    for views in args.views:
+        results.append(_evaluate_views(args, model, files, views, group))
+        if baseline_model is not None:
+            results.append(_evaluate_views(args, baseline_model, files, views, group, blank=True))
     if not group.is_main:
         return 0
-    table = markdown(results, args.split)
+    table = markdown(results, args.split, baseline and str(baseline))
     print(table)
     if args.out:
         payload = {"split": args.split, "checkpoint": str(args.checkpoint), "ego_path": args.ego_path,
-                   "results": [{"views": r.views, "stitched": r.summary("stitched"), "causal": r.summary("causal"),
-                                "trajectories": r.rows} for r in results]}
+                   "pose_only_checkpoint": baseline and str(baseline), "results": [result_record(r, results) for r in results]}
         (args.out / "results.json").write_text(json.dumps(payload, indent=1, allow_nan=True) + "\n")
         (args.out / "results.md").write_text(table)
         print(f"results: {args.out / 'results.json'}, {args.out / 'results.md'}")

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from touchanything.inference.training.train_config import describe_settings, train_config_from_file
@@ -17,11 +18,15 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--split-file", type=Path, help="split file (default: DATA/split.json)")
     parser.add_argument("--out", type=Path, help="checkpoint folder (default: checkpoints/<time>_<backbone>_<config>)")
     parser.add_argument("--resume", type=Path, help="continue from a checkpoint of the same run (e.g. OUT/last.pth)")
+    parser.add_argument("--blank-images", action="store_true",
+                        help="train the pose-only baseline: every frame black (sets data.blank_images: true)")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     config = train_config_from_file(args.config)
+    if args.blank_images:
+        config = replace(config, data=replace(config.data, blank_images=True))
     run_name = f"{time.strftime('%Y%m%d_%H%M%S')}_{config.model.backbone}_tactile_prediction_{args.config.stem}"
     out = args.out or Path("checkpoints") / run_name
     if os.environ.get("RANK", "0") == "0":

@@ -4,7 +4,10 @@ Per model: each setting replays the held-out episodes frame by frame (official m
 truth, agreement with the fp32 reference setting's outputs, throughput), then all settings take turns on
 a full-resolution clip (interleaved rounds after a warm-up round) for per-frame latency p50/p99. The naive
 baseline recomputes the whole 8-frame clip every frame; `naive_over_streaming` is its per-frame time over
-the streaming engine's (torch fp32, all views), per model.
+the streaming engine's (torch fp32, all views), per model. With `BenchPlan.pose_only`, each setting is
+followed by its pose-only baseline: the same engine replaying the same episodes with every frame black
+(`preprocess.blank_images`), accuracy only (the engine's work does not depend on the pixels), with the share of
+each metric that vision carries (`vision_share`).
 """
 from __future__ import annotations
 
@@ -27,9 +30,10 @@ from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_data import BenchEpisode, resident_mb
 from touchanything.inference.evaluation.evaluation import trajectory_metrics
 from touchanything.inference.evaluation.metrics import aggregate
+from touchanything.inference.evaluation.vision_share import vision_shares
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from touchanything.inference.model.pose_encoder import prepare_poses
-from touchanything.inference.model.preprocess import resize_frame, to_model_input
+from touchanything.inference.model.preprocess import blank_images, resize_frame, to_model_input
 from touchanything.inference.model.torch_device import device_label
 from touchanything.inference.model.touch_model import TouchAnything
 
@@ -47,12 +51,13 @@ class BenchSetting:
     invalid_hands: str = "skip"
     device: str = "cpu"
     capture: bool = True
+    blank: bool = False
 
     def label(self) -> str:
         views = "+".join(v.replace("wrist_", "") for v in self.views)
         extra = "".join([f" every {self.rate}" if self.rate > 1 else "", f" {self.output}" if self.output != "newest" else "",
                          " official-invalid" if self.invalid_hands == "official" else "",
-                         " eager" if not self.capture else ""])
+                         " eager" if not self.capture else "", " pose only" if self.blank else ""])
         return f"{self.model} {self.runtime}-{self.precision} {views}{extra}"
 
     def engine_config(self, onnx_dir: Path | None) -> EngineConfig:
@@ -61,26 +66,31 @@ class BenchSetting:
                             capture=self.capture)
 
 
-def settings_for(model: str, quick: bool) -> list[BenchSetting]:
-    """The reference (torch fp32, all views) first, then one knob at a time around it."""
+def settings_for(model: str, quick: bool, pose_only: bool = False) -> list[BenchSetting]:
+    """The reference (torch fp32, all views) first, then one knob at a time around it; with `pose_only`, each
+    followed by its pose-only baseline (`blank`)."""
     base = BenchSetting(model)
-    if quick:
-        return [base, dataclasses.replace(base, runtime="onnx", precision="int8")]
     int8 = dataclasses.replace(base, runtime="onnx", precision="int8")
     partial_views = [("ego",), ("ego", "wrist_left"), ("ego", "wrist_right")]
-    return ([base, dataclasses.replace(base, precision="bf16"), dataclasses.replace(base, runtime="onnx"), int8]
-            + [dataclasses.replace(s, views=v) for s in (base, int8) for v in partial_views]
-            + [dataclasses.replace(int8, rate=k) for k in (2, 3)]
-            + [dataclasses.replace(base, output=o) for o in ("centre", "stitched")]
-            + [dataclasses.replace(base, invalid_hands="official")])
+    settings = [base, int8] if quick else (
+        [base, dataclasses.replace(base, precision="bf16"), dataclasses.replace(base, runtime="onnx"), int8]
+        + [dataclasses.replace(s, views=v) for s in (base, int8) for v in partial_views]
+        + [dataclasses.replace(int8, rate=k) for k in (2, 3)]
+        + [dataclasses.replace(base, output=o) for o in ("centre", "stitched")]
+        + [dataclasses.replace(base, invalid_hands="official")])
+    return [t for s in settings for t in ((s, dataclasses.replace(s, blank=True)) if pose_only else (s,))]
 
 
-def replay_outputs(engine: StreamingEngine, episode: BenchEpisode, peak: list[float]) -> np.ndarray:
-    """Every frame through the engine (replay mode) → (F, 2, 21, 21), NaN where nothing was predicted."""
+def replay_outputs(engine: StreamingEngine, episode: BenchEpisode, peak: list[float], blank: bool = False) -> np.ndarray:
+    """Every frame through the engine (replay mode; `blank`: its images black) → (F, 2, 21, 21), NaN where
+    nothing was predicted."""
     engine.reset()
     out = np.full((episode.num_frames, 2, 21, 21), np.nan, np.float32)
     for i in range(episode.num_frames):
-        for prediction in engine.step(episode.snapshot(i, int(time.monotonic() * 1e6))):
+        snapshot = episode.snapshot(i, int(time.monotonic() * 1e6))
+        if blank:
+            snapshot = dataclasses.replace(snapshot, images=blank_images(snapshot.images))
+        for prediction in engine.step(snapshot):
             if prediction.pressure is not None:
                 out[prediction.frame_index] = prediction.pressure
         peak[0] = max(peak[0], resident_mb())
@@ -149,19 +159,22 @@ def naive_latency(model: TouchAnything, clip: list[Snapshot], steps: int, warmup
 
 @dataclass
 class BenchPlan:
-    """rounds × per_round latency frames per setting; naive_steps naive clip recomputations per model."""
+    """rounds × per_round latency frames per setting; naive_steps naive clip recomputations per model;
+    pose_only: each setting's pose-only baseline too."""
 
     quick: bool
     rounds: int
     per_round: int
     naive_steps: int
+    pose_only: bool = False
 
 
 def accuracy_fields(engine: StreamingEngine, episodes: list[BenchEpisode], reference: list[np.ndarray] | None,
-                    bend: np.ndarray) -> tuple[dict, list[np.ndarray]]:
-    """Official metrics, agreement with the reference outputs (itself when None), throughput, peak memory."""
+                    bend: np.ndarray, blank: bool = False) -> tuple[dict, list[np.ndarray]]:
+    """Official metrics, agreement with the reference outputs (itself when None), throughput, peak memory
+    (`blank`: of the replay with every image black)."""
     peak, start = [resident_mb()], time.perf_counter()
-    outputs = [replay_outputs(engine, episode, peak) for episode in episodes]
+    outputs = [replay_outputs(engine, episode, peak, blank) for episode in episodes]
     seconds = time.perf_counter() - start
     metrics = official_metrics(outputs, episodes, bend)
     agree, worst = agreement(outputs, reference or outputs)
@@ -170,44 +183,63 @@ def accuracy_fields(engine: StreamingEngine, episodes: list[BenchEpisode], refer
             "throughput_fps": sum(e.num_frames for e in episodes) / seconds}, outputs
 
 
-def latency_row(setting: BenchSetting, times: np.ndarray, peak_mb: float, runtime: Runtime) -> dict:
-    """The row of one setting's latency; `runtime` (the engine's, after the run) names device and capture."""
+def setting_row(setting: BenchSetting, runtime: Runtime) -> dict:
+    """A row's description of its setting, latency and accuracy not measured (None); `runtime` (the engine's,
+    after the run) names device and capture."""
     gpu = torch.cuda.get_device_name(runtime.device) if runtime.device.type == "cuda" else None
     return {"preset": setting.model, "runtime": setting.runtime, "precision": setting.precision,
             "device": device_label(runtime.device), "gpu_name": gpu, "capture": runtime.capture,
             "views": "+".join(setting.views), "rate": setting.rate, "output": setting.output,
-            "invalid_hands": setting.invalid_hands, "label": setting.label(),
+            "invalid_hands": setting.invalid_hands, "blank": setting.blank, "label": setting.label(),
             "threads": setting.engine_config(None).compute_threads(),
-            "lookahead_ms": LOOKAHEAD_FRAMES[setting.output] * 1000 / 30,
-            "p50_ms": float(np.percentile(times, 50)), "p99_ms": float(np.percentile(times, 99)),
-            "mean_ms": float(times.mean()), "latency_frames": int(times.size), "contact_iou": None,
-            "volumetric_iou": None, "agreement_viou": None, "peak_rss_mb": peak_mb}
+            "lookahead_ms": LOOKAHEAD_FRAMES[setting.output] * 1000 / 30, "p50_ms": None, "p99_ms": None,
+            "mean_ms": None, "latency_frames": 0, "contact_iou": None, "volumetric_iou": None, "agreement_viou": None,
+            "peak_rss_mb": 0.0}
+
+
+def latency_row(setting: BenchSetting, times: np.ndarray, peak_mb: float, runtime: Runtime) -> dict:
+    """The row of one setting's latency (`setting_row` with the step times in ms)."""
+    return {**setting_row(setting, runtime), "p50_ms": float(np.percentile(times, 50)),
+            "p99_ms": float(np.percentile(times, 99)), "mean_ms": float(times.mean()), "latency_frames": int(times.size),
+            "peak_rss_mb": peak_mb}
+
+
+def measured_accuracy(settings: list[BenchSetting], engines: dict[BenchSetting, StreamingEngine],
+                      episodes: list[BenchEpisode], progress=print) -> dict[BenchSetting, dict]:
+    """`accuracy_fields` of every setting in order (a pose-only one through its real twin's engine), agreement
+    against the first setting's outputs; a pose-only setting also gets its `vision_share` of each metric."""
+    bend = TactileLayout.default().bend
+    accuracy: dict[BenchSetting, dict] = {}
+    reference = None
+    for setting in settings:
+        progress(f"{setting.label()}: accuracy on {len(episodes)} episodes")
+        twin = dataclasses.replace(setting, blank=False)
+        accuracy[setting], outputs = accuracy_fields(engines[twin], episodes, reference, bend, setting.blank)
+        if setting.blank:
+            accuracy[setting]["vision_share"] = vision_shares(accuracy[twin]["metrics"], accuracy[setting]["metrics"])
+        reference = reference or outputs
+    return accuracy
 
 
 def bench_model(name: str, model: TouchAnything, episodes: list[BenchEpisode] | None, clip: list[Snapshot],
                 plan: BenchPlan, progress=print) -> tuple[list[dict], dict]:
-    """Rows for one model's settings (latency only, torch fp32 all views, without episodes) and its naive
-    comparison {naive_p50_ms, streaming_p50_ms, ratio}."""
-    settings = settings_for(name, plan.quick) if episodes is not None else [BenchSetting(name)]
-    bend = TactileLayout.default().bend
-    accuracy: dict[BenchSetting, dict] = {}
+    """Rows for one model's settings (latency only, torch fp32 all views, without episodes; accuracy only for a
+    pose-only baseline) and its naive comparison {naive_p50_ms, streaming_p50_ms, ratio}."""
+    settings = settings_for(name, plan.quick, plan.pose_only) if episodes is not None else [BenchSetting(name)]
     with tempfile.TemporaryDirectory(prefix="touchanything-bench-") as onnx_dir:
         if any(s.runtime == "onnx" for s in settings):
             progress(f"{name}: exporting ONNX graphs")
             export_onnx(model, Path(onnx_dir), int8=True)
         engines = {s: StreamingEngine(model, s.engine_config(Path(onnx_dir) if s.runtime == "onnx" else None))
-                   for s in settings}
-        reference = None
-        for setting, engine in engines.items():
-            if episodes is not None:
-                progress(f"{setting.label()}: accuracy on {len(episodes)} episodes")
-                accuracy[setting], outputs = accuracy_fields(engine, episodes, reference, bend)
-                reference = reference or outputs
+                   for s in settings if not s.blank}
+        accuracy = measured_accuracy(settings, engines, episodes, progress) if episodes is not None else {}
         progress(f"{name}: interleaved latency ({plan.rounds} rounds × {plan.per_round} frames per setting)")
         latency = interleaved_latency(engines, clip, plan.rounds, plan.per_round)
     rows = []
-    for setting, (times, peak) in latency.items():
-        row = latency_row(setting, times, peak, engines[setting].runtime)
+    for setting in settings:
+        runtime = engines[dataclasses.replace(setting, blank=False)].runtime
+        times, peak = latency.get(setting, (None, 0.0))
+        row = setting_row(setting, runtime) if times is None else latency_row(setting, times, peak, runtime)
         row.update(accuracy.get(setting, {}))
         row["peak_rss_mb"] = max(peak, accuracy.get(setting, {}).get("peak_rss_mb", 0.0))
         rows.append(row)

@@ -13,7 +13,7 @@ PRECISION_LOSS_TARGET = 0.01
 def _reference(rows: list[dict], preset: str) -> dict | None:
     return next((r for r in rows if r["preset"] == preset and r["runtime"] == "torch" and r["precision"] == "fp32"
                  and r["rate"] == 1 and r["output"] == "newest" and r["invalid_hands"] == "skip"
-                 and r["views"].count("+") == 2 and r["volumetric_iou"] is not None), None)
+                 and r["views"].count("+") == 2 and r["volumetric_iou"] is not None and not r.get("blank")), None)
 
 
 def _check(target: str, value: float | None, bound: float, at_most: bool) -> dict:
@@ -22,7 +22,9 @@ def _check(target: str, value: float | None, bound: float, at_most: bool) -> dic
 
 
 def target_checks(rows: list[dict], naive: dict, smallest: str) -> list[dict]:
-    """The issue's three targets, each {target, value, limit, met} (value and met None when not measured)."""
+    """The issue's three targets, each {target, value, limit, met} (value and met None when not measured);
+    pose-only baselines are not settings to ship and are left out."""
+    rows = [r for r in rows if not r.get("blank")]
     fast = next((r for r in rows if r["preset"] == smallest and r["runtime"] == "onnx" and r["precision"] == "int8"
                  and r["views"].count("+") == 2 and r["rate"] == 1 and r["output"] == "newest"), None)
     checks = [_check(f"{smallest} ONNX int8, all views: p99 per-frame latency (ms)", fast and fast["p99_ms"],
@@ -57,11 +59,31 @@ def markdown(record: dict) -> str:
               "| preset | naive ms/frame | streaming ms/frame | naive / streaming |", "|---|---|---|---|"]
     for preset, n in record["naive"].items():
         lines.append(f"| {preset} | {_fmt(n['naive_p50_ms'], 1)} | {_fmt(n['streaming_p50_ms'], 1)} | {_fmt(n['ratio'], 1)}× |")
+    lines += vision_share_lines(record["rows"])
     lines += ["", "## Targets", "", "| target | measured | limit | met |", "|---|---|---|---|"]
     for c in record["targets"]:
         met = {True: "yes", False: "**no**", None: "not measured"}[c["met"]]
         lines.append(f"| {c['target']} | {_fmt(c['value'])} | {c['limit']} | {met} |")
     return "\n".join(lines) + "\n"
+
+
+SHARE_COLUMNS = ("contact_iou", "volumetric_iou", "temporal_accuracy", "temporal_f1", "mae")
+
+
+def vision_share_lines(rows: list[dict]) -> list[str]:
+    """The vision share of each pose-only row's setting (none without them): (real − pose only) / max(real,
+    pose only), MAE reversed (`inference/evaluation/vision_share.py`)."""
+    blanks = [r for r in rows if r.get("blank")]
+    if not blanks:
+        return []
+    lines = ["", "## Share carried by vision (against the pose-only baseline: every frame black)", "",
+             "(real − pose only) / max(real, pose only); for MAE (pose only − real) / max; 1 = all from the images, "
+             "0 = none, < 0 = better without them.", "",
+             "| setting | " + " | ".join(SHARE_COLUMNS) + " |", "|---|" + "---|" * len(SHARE_COLUMNS)]
+    for r in blanks:
+        setting = r["label"].removesuffix(" pose only")
+        lines.append(f"| {setting} | " + " | ".join(_fmt(r["vision_share"][k]) for k in SHARE_COLUMNS) + " |")
+    return lines
 
 
 def pareto_front(points: list[tuple[float, float]]) -> list[int]:
@@ -77,7 +99,8 @@ def pareto_plot(rows: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
     import matplotlib.ticker
 
-    measured = [r for r in rows if r["volumetric_iou"] is not None and not math.isnan(r["volumetric_iou"])]
+    measured = [r for r in rows if r["volumetric_iou"] is not None and not math.isnan(r["volumetric_iou"])
+                and r["p99_ms"] is not None]
     points = [(r["p99_ms"], r["volumetric_iou"]) for r in measured]
     fig, ax = plt.subplots(figsize=(9, 6), dpi=110)
     for preset in sorted({r["preset"] for r in measured}):

@@ -5,7 +5,8 @@ is the average over all clips that contain it; its causal prediction is the last
 ends on it (frames 0–13 have none); each frame is encoded once (`trajectory_prediction`). Metrics per
 trajectory (`touchanything.inference.evaluation.metrics`), then nanmean overall and per scene category (the
 parent of the task folder). `--views ego` uses the official `frames=` path unless
-`ego_path="views"` asks for the multi-view encoder.
+`ego_path="views"` asks for the multi-view encoder. `blank=True` is the pose-only baseline: the same protocol
+with every frame of every used view black (`preprocess.blank_frames`).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.metrics import MetricAccumulator, aggregate, ground_truth_for_metrics
 from touchanything.inference.evaluation.trajectory_prediction import TrajectoryPrediction, predict_trajectory
+from touchanything.inference.evaluation.vision_share import vision_shares
 from touchanything.inference.model.torch_device import ProcessGroup
 from touchanything.inference.model.touch_model import TouchAnything
 
@@ -40,10 +42,16 @@ def trajectory_metrics(prediction: np.ndarray, gt: np.ndarray, bend: np.ndarray)
 
 @dataclass
 class EvaluationResult:
-    """rows: one dict per trajectory (path, scene, task, frames, stitched/causal metrics)."""
+    """rows: one dict per trajectory (path, scene, task, frames, stitched/causal metrics); blank: the
+    pose-only baseline (images blanked)."""
 
     views: str
     rows: list[dict]
+    blank: bool = False
+
+    @property
+    def label(self) -> str:
+        return f"{self.views} (pose only)" if self.blank else self.views
 
     def summary(self, mode: str) -> dict[str, dict[str, float]]:
         """{"overall" | scene: nanmean metrics} for mode "stitched" or "causal"."""
@@ -53,11 +61,19 @@ class EvaluationResult:
         return out
 
 
+def vision_share_summary(real: EvaluationResult, blank: EvaluationResult, mode: str) -> dict[str, dict[str, float]]:
+    """{"overall" | scene: {metric: share}}: the share of `real`'s summary that vision carries against its
+    pose-only baseline `blank` (same files and views), from the summary values (`vision_share`)."""
+    baseline = blank.summary(mode)
+    return {scene: vision_shares(metrics, baseline[scene]) for scene, metrics in real.summary(mode).items()}
+
+
 def evaluate(model: TouchAnything, files: list[Path], views: str, batch_size: int = 16, ego_path: str = "frames",
              precision: str = "fp32", group: ProcessGroup = ProcessGroup(),
              on_trajectory: Callable[[dict, Episode, TrajectoryPrediction, np.ndarray], None] | None = None,
-             on_frames: Callable[[int], None] | None = None) -> EvaluationResult:
-    """The official protocol over HDF5 (or raw) trajectories for one view configuration, on the model's device.
+             on_frames: Callable[[int], None] | None = None, blank: bool = False) -> EvaluationResult:
+    """The official protocol over HDF5 (or raw) trajectories for one view configuration, on the model's device
+    (`blank`: with every frame of those views black, the pose-only baseline).
 
     Under `torchrun` (group.world > 1) process r evaluates files r, r + world, …; every process returns all
     rows, in `files` order, so the result equals one process's. `on_trajectory(row, episode, prediction, gt)`
@@ -72,7 +88,8 @@ def evaluate(model: TouchAnything, files: list[Path], views: str, batch_size: in
         with open_episode(path) as episode:
             if episode.pressure is None:
                 raise UserError(f"{path}: no ground-truth pressure; cannot evaluate")
-            prediction = predict_trajectory(model, episode, VIEW_SETS[views], batch_size, ego_path, precision, on_frames)
+            prediction = predict_trajectory(model, episode, VIEW_SETS[views], batch_size, ego_path, precision, on_frames,
+                                            blank)
             gt = ground_truth_for_metrics(episode.pressure.grids, bool(episode.pressure.attrs.get("normalized", False)))
             row = {"path": str(path), "scene": episode.scene, "task": episode.task, "frames": episode.num_frames,
                    "stitched": trajectory_metrics(prediction.stitched, gt, bend),
@@ -83,4 +100,4 @@ def evaluate(model: TouchAnything, files: list[Path], views: str, batch_size: in
         gathered: list[list] = [[] for _ in range(group.world)]
         dist.all_gather_object(gathered, rows)
         rows = [item for part in gathered for item in part]
-    return EvaluationResult(views, [row for _, row in sorted(rows, key=lambda item: item[0])])
+    return EvaluationResult(views, [row for _, row in sorted(rows, key=lambda item: item[0])], blank)

@@ -40,6 +40,10 @@ EVENT_METRICS = ("onset_precision", "onset_recall", "offset_precision", "offset_
 EXTRA_METRICS = DETECTION_METRICS + EVENT_METRICS
 """Computed per trajectory by the official metric module, not reported by its evaluation."""
 ALL_METRICS = METRICS + EXTRA_METRICS
+ERROR_METRICS = ("mae", "mae_left", "mae_right")
+"""Lower is better; every other metric but the counts is a score in [0, 1], higher is better."""
+COUNT_METRICS = ("temporal_support", "num_gt_onsets", "num_gt_offsets")
+"""Ground-truth counts: the same whatever the prediction."""
 
 
 def contact_frames(grids: np.ndarray, bend: np.ndarray, threshold: float = CONTACT_THRESHOLD,

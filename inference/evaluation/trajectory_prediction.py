@@ -19,7 +19,7 @@ from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.errors import UserError
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN, TACTILE_SIZE
 from touchanything.inference.model.pose_encoder import prepare_poses
-from touchanything.inference.model.preprocess import resize_frame, to_model_input
+from touchanything.inference.model.preprocess import blank_frames, resize_frame, to_model_input
 from touchanything.inference.model.torch_device import autocast
 from touchanything.inference.model.touch_model import TouchAnything
 
@@ -41,27 +41,37 @@ class FrameFeatures:
     older ones; `clips(starts)` gathers (B, 8, N, D) for clip starts."""
 
     def __init__(self, model: TouchAnything, episode: Episode, views: tuple[str, ...], ego_path: str,
-                 batch_size: int, precision: str) -> None:
-        self.model, self.episode, self.views = model, episode, views
+                 batch_size: int, precision: str, blank: bool = False) -> None:
+        missing = next((v for v in views if v not in episode.views), None)
+        if missing:
+            raise UserError(f"{episode.path}: view {missing} is missing; evaluate with fewer views")
+        self.model, self.episode, self.views, self.blank = model, episode, views, blank
         self.official_frames = views == ("ego",) and ego_path == "frames"
         self.batch_size, self.precision = batch_size, precision
         self.device = next(model.parameters()).device
         self.first = self.end = 0
         self.buffer: torch.Tensor | None = None
+        self._blank_features: torch.Tensor | None = None
 
     def _read(self, view: str, index: int) -> np.ndarray:
-        source = self.episode.views.get(view)
-        if source is None:
-            raise UserError(f"{self.episode.path}: view {view} is missing; evaluate with fewer views")
-        image = source.read(index)
+        image = self.episode.views[view].read(index)
         if image is None:
             raise UserError(f"{self.episode.path}: view {view} has no frame {index}")
         return resize_frame(image, self.model.config.image_size)
 
     def _encode(self, start: int, stop: int) -> torch.Tensor:
-        """(stop − start, N, D) features of frames [start, stop), in float32."""
-        inputs = {v: to_model_input(np.stack([self._read(v, i) for i in range(start, stop)]))[None].to(self.device)
-                  for v in self.views}
+        """(stop − start, N, D) features of frames [start, stop), in float32. Blank: every frame's features are
+        those of one black frame per view (the per-frame half sees one frame only), encoded once."""
+        if not self.blank:
+            return self._encode_frames({v: np.stack([self._read(v, i) for i in range(start, stop)]) for v in self.views})
+        if self._blank_features is None:
+            size = self.model.config.image_size
+            self._blank_features = self._encode_frames({v: blank_frames((1, size, size, 3)) for v in self.views})
+        return self._blank_features.expand(stop - start, -1, -1)
+
+    def _encode_frames(self, frames: dict[str, np.ndarray]) -> torch.Tensor:
+        """{view: (K, S, S, 3) uint8} → (K, N, D) float32 features."""
+        inputs = {v: to_model_input(images)[None].to(self.device) for v, images in frames.items()}
         with autocast(self.device, self.precision):
             if self.official_frames:
                 visual = self.model.vision_encoder(inputs["ego"])
@@ -92,11 +102,12 @@ class FrameFeatures:
 @torch.no_grad()
 def predict_trajectory(model: TouchAnything, episode: Episode, views: tuple[str, ...], batch_size: int = 16,
                        ego_path: str = "frames", precision: str = "fp32",
-                       on_frames: Callable[[int], None] | None = None) -> TrajectoryPrediction:
+                       on_frames: Callable[[int], None] | None = None, blank: bool = False) -> TrajectoryPrediction:
     """Stitched (average of the clips covering a frame) and causal (last frame of the clip ending on it)
     predictions of every stride-1 clip, `batch_size` clips (and frames) per forward pass. `on_frames(n)` is
     told how many frames were just encoded (for a progress bar). A trajectory shorter than 15 frames or
-    without a WiLoR pose has no prediction (all NaN)."""
+    without a WiLoR pose has no prediction (all NaN). `blank`: the pose-only baseline, every frame of every
+    view in `views` black (`blank_frames`; no frame is decoded)."""
     count = episode.num_frames
     causal = np.full((count, *GRID), np.nan, np.float32)
     if count < SPAN or episode.wilor is None:
@@ -104,7 +115,7 @@ def predict_trajectory(model: TouchAnything, episode: Episode, views: tuple[str,
         return TrajectoryPrediction(causal.copy(), causal)
     stitched_sum, covered = np.zeros((count, *GRID), np.float64), np.zeros(count, np.int64)
     poses = torch.from_numpy(prepare_poses(episode.wilor.joints.reshape(count, 42, 3), episode.wilor.valid))
-    features = FrameFeatures(model, episode, views, ego_path, batch_size, precision)
+    features = FrameFeatures(model, episode, views, ego_path, batch_size, precision, blank)
     offsets = np.arange(CLIP_LENGTH) * FRAME_INTERVAL
     starts = np.arange(count - SPAN + 1)
     for first in range(0, len(starts), batch_size):

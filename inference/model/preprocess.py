@@ -1,4 +1,5 @@
-"""Model inputs: frames resized with cv2 INTER_LINEAR (as the official inference) and ImageNet-normalised."""
+"""Model inputs: frames resized with cv2 INTER_LINEAR (as the official inference) and ImageNet-normalised, and the
+black frames of the pose-only baseline."""
 from __future__ import annotations
 
 import cv2
@@ -7,6 +8,19 @@ import torch
 
 IMAGENET_MEAN = torch.tensor([0.485, 0.456, 0.406]).view(3, 1, 1)
 IMAGENET_STD = torch.tensor([0.229, 0.224, 0.225]).view(3, 1, 1)
+
+
+def blank_frames(shape: tuple[int, ...]) -> np.ndarray:
+    """Black uint8 RGB frames of `shape` (..., H, W, 3): every pixel 0 in every channel. The pose-only baseline
+    shows these in place of every camera frame of every view a configuration uses (the views stay present),
+    through the same preprocessing; black resizes to black, so blanking before or after `resize_frame` gives
+    the same model input, (0 − mean) / std per channel."""
+    return np.zeros(shape, np.uint8)
+
+
+def blank_images(images: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """{view: image} → the same views, each a black frame of its image's shape (`blank_frames`)."""
+    return {view: blank_frames(image.shape) for view, image in images.items()}
 
 
 def resize_frame(image: np.ndarray, size: int) -> np.ndarray:

@@ -2,9 +2,10 @@
 pose rules and target preparation over HDF5 trajectories, and the DataLoader that feeds them.
 
 Poses and pressure (small) are read once when the dataset is built; frames are decoded and resized per clip,
-inside the DataLoader's worker processes when there are any. A worker opens each trajectory's file on first
-use and closes it when the worker exits; the main process opens a file per clip and closes it at once, so
-no HDF5 handle is ever open in a process that forks workers.
+inside the DataLoader's worker processes when there are any (`blank`: none is decoded; every view shows black
+frames, the pose-only baseline). A worker opens each trajectory's file on first use and closes it when the
+worker exits; the main process opens a file per clip and closes it at once, so no HDF5 handle is ever open in
+a process that forks workers.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
 from touchanything.devices.errors import UserError
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from touchanything.inference.model.pose_encoder import prepare_poses
-from touchanything.inference.model.preprocess import resize_frame, to_model_input
+from touchanything.inference.model.preprocess import blank_frames, resize_frame, to_model_input
 
 
 def clip_starts(frames: int, span: int) -> list[int]:
@@ -90,9 +91,10 @@ class ClipDataset(Dataset):
     index and the frame indices (T,) — everything a training step and the feature cache need. Items depend
     only on the index (no random numbers are drawn), so any number of workers yields the same batches."""
 
-    def __init__(self, files: list[Path], size: int, pose_source: str = "wilor", fallback: str | None = None) -> None:
+    def __init__(self, files: list[Path], size: int, pose_source: str = "wilor", fallback: str | None = None,
+                 blank: bool = False) -> None:
         self.episodes = [load_episode(f, pose_source, fallback) for f in files]
-        self.size = size
+        self.size, self.blank = size, blank
         self.offsets = np.arange(CLIP_LENGTH) * FRAME_INTERVAL
         self.items = [(e, s) for e, ep in enumerate(self.episodes) for s in clip_starts(len(ep.poses), SPAN)]
         self._files: dict[int, h5py.File] = {}  # filled only inside a DataLoader worker
@@ -114,7 +116,10 @@ class ClipDataset(Dataset):
 
     def _views(self, e: int, frames: np.ndarray) -> dict[str, torch.Tensor]:
         """Decoded, resized and normalised frames of every view: through this worker's open file, or
-        (in the main process) a file opened for this clip only."""
+        (in the main process) a file opened for this clip only. Blank: black frames, nothing read."""
+        if self.blank:
+            black = to_model_input(blank_frames((len(frames), self.size, self.size, 3)))
+            return dict.fromkeys(self.episodes[e].views, black)
         if get_worker_info() is not None:
             return self._read(self._worker_file(e), e, frames)
         with h5py.File(self.episodes[e].path, "r") as file:

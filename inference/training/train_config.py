@@ -6,7 +6,8 @@ official names: `training.{batch_size, num_epochs, save_interval, val_interval, 
 min_lr}`, `training.loss.{mse_weight, l1_weight, tv_weight, contact_weight, pressure_threshold}`,
 `system.{seed, mixed_precision}`, `data.{pose_source, fallback_pose_source}`. Defaults are the official
 recipe (`touchanything_with_glove_aug_wilor.yaml`). Official keys that do not change this trainer are
-accepted and listed by `TrainConfig.unused` (the `train` command prints them).
+accepted and listed by `TrainConfig.unused` (the `train` command prints them). One project extension, not in
+the official structure: `data.blank_images` (default false), which trains the pose-only baseline.
 """
 from __future__ import annotations
 
@@ -73,7 +74,8 @@ class SystemConfig:
 
 @dataclass(frozen=True)
 class TrainingDataConfig:
-    """The training part of `data`; the model's input keys are read by `ModelInputConfig`."""
+    """The training part of `data`; the model's input keys are read by `ModelInputConfig`. `blank_images` (a
+    project extension): every frame of every view black (`preprocess.blank_frames`), the pose-only baseline."""
 
     FIXED: ClassVar = {"use_augmentation": False, "random_crop": False, "random_flip": False}
     UNUSED: ClassVar = ("dataset", "data_root", "split_file", "mapping_left", "mapping_right", "train_split",
@@ -81,6 +83,7 @@ class TrainingDataConfig:
     ELSEWHERE: ClassVar = ("image_size", *ModelInputConfig.FIXED)
     pose_source: str = "wilor"
     fallback_pose_source: str | None = None
+    blank_images: bool = False
 
 
 @dataclass(frozen=True)
@@ -152,7 +155,8 @@ def describe_settings(config: TrainConfig) -> list[str]:
         f"{loading}",
         f"loss: mse {loss.mse_weight:g} + l1 {loss.l1_weight:g} (×{loss.contact_weight:g} above {loss.pressure_threshold:g}) "
         f"+ tv {loss.tv_weight:g}; clips of {CLIP_LENGTH} frames at interval {FRAME_INTERVAL}; poses {config.data.pose_source}"
-        f"{' falling back to ' + config.data.fallback_pose_source if config.data.fallback_pose_source else ''}; "
+        f"{' falling back to ' + config.data.fallback_pose_source if config.data.fallback_pose_source else ''}"
+        f"{'; images blanked (pose-only baseline)' if config.data.blank_images else ''}; "
         f"validation every {t.val_interval} epoch(s), a checkpoint every {t.save_interval}",
     ]
     if config.unused:

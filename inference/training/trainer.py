@@ -84,7 +84,8 @@ class Trainer:
         if not train_files:
             raise UserError("the split's train list is empty")
         def dataset(files: list[Path]) -> ClipDataset:
-            return ClipDataset(files, c.image_size, config.data.pose_source, config.data.fallback_pose_source)
+            d = config.data
+            return ClipDataset(files, c.image_size, d.pose_source, d.fallback_pose_source, d.blank_images)
 
         self.train_set = dataset(train_files)
         self.val_set = dataset(_files(data, split_file, "val"))
