@@ -56,5 +56,12 @@ def run(args: argparse.Namespace) -> int:
     for camera, v in card["contact_visibility"].items():
         share = "n/a" if v["share"] is None else f"{100 * v['share']:.1f}%"
         print(f"contact visible from {camera}: {share} of {v['contact_points']} contact points")
+    ambiguity, error = card["pose_ambiguity"], card["pose_error_mm"]
+    if ambiguity is not None:
+        share = "n/a" if ambiguity["ambiguous_share"] is None else f"{100 * ambiguity['ambiguous_share']:.1f}%"
+        print(f"pose error (RMS over joints): median {error['median']} mm, visible hands {error['visible_hand_median']} mm, "
+              f"occluded hands {error['occluded_hand_median']} mm")
+        print(f"pose-ambiguous contact: {share} of {ambiguity['contact_frames']} sampled contact hand-frames "
+              f"(a no-contact pose within {ambiguity['tolerance_mm']} mm)")
     print(f"dataset card: {args.out / CARD_MD}; split: {args.out / 'split.json'}")
     return 0

@@ -1,5 +1,6 @@
 """Generate a simulated EgoTouch dataset: N episodes over the five scene categories, a `split.json` with
-seen and unseen objects, and a dataset card (counts, contact statistics, contact visibility per camera).
+seen and unseen objects, and a dataset card (counts, contact statistics, contact visibility per camera, the
+pose error and the share of contact the pose alone cannot decide).
 """
 from __future__ import annotations
 
@@ -16,7 +17,9 @@ import numpy as np
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, partition_seen
 from touchanything.devices.errors import UserError
 from touchanything.devices.sim.catalogue import SCENES, UNSEEN_OBJECTS
-from touchanything.devices.sim.episode_generator import CAMERAS, EpisodeSpec, EpisodeStats, generate_episode
+from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_episode
+from touchanything.devices.sim.episode_stats import CAMERAS, EpisodeStats
+from touchanything.devices.sim.pose_ambiguity import pose_statistics
 
 UNSEEN_SHARE = 0.2
 CARD_JSON, CARD_MD = "dataset_card.json", "dataset_card.md"
@@ -124,6 +127,7 @@ def dataset_card(results: list[EpisodeStats], config: SimulationConfig, seconds:
         "dead_column_episodes": sum(s.dead_column is not None for s in results),
         "contact_by_hand_and_task": contact,
         "contact_visibility": per_camera,
+        **pose_statistics(results),
         "episodes_list": [{"path": s.folder.relative_to(out).as_posix(), "task": s.task, "objects": s.objects,
                            "dead_right_column": s.dead_column} for s in results],
     }
@@ -147,4 +151,20 @@ def card_markdown(card: dict) -> str:
               "| camera | contact points | visible | own hand only |", "|---|---|---|---|"]
     for camera, v in card["contact_visibility"].items():
         lines.append(f"| {camera} | {v['contact_points']} | {_share(v['share'])} | {_share(v.get('own_hand_share'))} |")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + _pose_markdown(card)) + "\n"
+
+
+def _pose_markdown(card: dict) -> list[str]:
+    error, ambiguity = card["pose_error_mm"], card["pose_ambiguity"]
+    if error is None:
+        return []
+    lines = ["", "## Pose error and pose ambiguity", "",
+             f"RMS joint error of the WiLoR pose (head-camera frame, mm): median {error['median']}, 90th percentile "
+             f"{error['p90']}; hands at most a quarter hidden from the head camera {error['visible_hand_median']}, more "
+             f"hidden {error['occluded_hand_median']}.", "",
+             f"Pose-ambiguous contact: {_share(ambiguity['ambiguous_share'])} of {ambiguity['contact_frames']} sampled contact "
+             f"hand-frames have a no-contact hand-frame whose true pose is within the median pose error "
+             f"({ambiguity['tolerance_mm']} mm RMS over the joints; docs/simulator.md).", "",
+             "| hand/task | contact frames (sampled) | pose-ambiguous |", "|---|---|---|"]
+    lines += [f"| {k} | {v['contact_frames']} | {_share(v['ambiguous_share'])} |" for k, v in ambiguity["by_hand_and_task"].items()]
+    return lines
