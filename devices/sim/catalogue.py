@@ -29,6 +29,8 @@ MISS, HOVER, HOVER_PRESS, AIR_PUSH, REST_HOVER = "miss", "hover", "hover_press",
 hover before the touch. `miss`: a hold or squeeze closing in the air; `hover`: a pointing finger stops 1–3 cm
 above a surface and withdraws; `hover_press`: it hovers, then presses; `air_push`: a push that misses the
 object; `rest_hover`: a flat hand held just above a surface instead of resting on it."""
+UNTOUCHED = (MISS, HOVER, AIR_PUSH, REST_HOVER)
+"""The outcomes in which the hand touches nothing."""
 SIZE_SCALE = (0.85, 1.2)
 """Each episode scales each object's size by a factor drawn from this range (heights and widths vary)."""
 

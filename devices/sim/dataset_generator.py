@@ -133,7 +133,8 @@ def dataset_card(results: list[EpisodeStats], config: SimulationConfig, seconds:
     }
 
 
-def _share(value: float | None) -> str:
+def percent(value: float | None) -> str:
+    """A share as '12.3%', or 'n/a'."""
     return "n/a" if value is None else f"{100 * value:.1f}%"
 
 
@@ -144,13 +145,13 @@ def card_markdown(card: dict) -> str:
              f"Episodes with unseen objects ({', '.join(card['unseen_objects'])}): {card['episodes_with_unseen_objects']}; "
              f"with a dead right-glove column (repaired in the ground truth): {card['dead_column_episodes']}.", "",
              "## Contact share (a tactile cell above 0.1) per hand and task", "", "| hand/task | frames | contact |", "|---|---|---|"]
-    lines += [f"| {k} | {v['frames']} | {_share(v['contact_share'])} |" for k, v in card["contact_by_hand_and_task"].items()]
+    lines += [f"| {k} | {v['frames']} | {percent(v['contact_share'])} |" for k, v in card["contact_by_hand_and_task"].items()]
     lines += ["", "## Contact visibility per camera", "",
               "Of the tactile points in contact, the share each camera sees (inside the image, line of sight not "
               "blocked by a hand, the table or another object).", "",
               "| camera | contact points | visible | own hand only |", "|---|---|---|---|"]
     for camera, v in card["contact_visibility"].items():
-        lines.append(f"| {camera} | {v['contact_points']} | {_share(v['share'])} | {_share(v.get('own_hand_share'))} |")
+        lines.append(f"| {camera} | {v['contact_points']} | {percent(v['share'])} | {percent(v.get('own_hand_share'))} |")
     return "\n".join(lines + _pose_markdown(card)) + "\n"
 
 
@@ -162,9 +163,9 @@ def _pose_markdown(card: dict) -> list[str]:
              f"RMS joint error of the WiLoR pose (head-camera frame, mm): median {error['median']}, 90th percentile "
              f"{error['p90']}; hands at most a quarter hidden from the head camera {error['visible_hand_median']}, more "
              f"hidden {error['occluded_hand_median']}.", "",
-             f"Pose-ambiguous contact: {_share(ambiguity['ambiguous_share'])} of {ambiguity['contact_frames']} sampled contact "
+             f"Pose-ambiguous contact: {percent(ambiguity['ambiguous_share'])} of {ambiguity['contact_frames']} sampled contact "
              f"hand-frames have a no-contact hand-frame whose true pose is within the median pose error "
              f"({ambiguity['tolerance_mm']} mm RMS over the joints; docs/simulator.md).", "",
              "| hand/task | contact frames (sampled) | pose-ambiguous |", "|---|---|---|"]
-    lines += [f"| {k} | {v['contact_frames']} | {_share(v['ambiguous_share'])} |" for k, v in ambiguity["by_hand_and_task"].items()]
+    lines += [f"| {k} | {v['contact_frames']} | {percent(v['ambiguous_share'])} |" for k, v in ambiguity["by_hand_and_task"].items()]
     return lines

@@ -15,7 +15,7 @@ from touchanything.devices.rig.pose_transform import wilor_focal_px
 from touchanything.devices.sim.cameras import HEIGHT, WIDTH, Camera, head_camera, wrist_camera
 from touchanything.devices.sim.catalogue import BIMANUAL_ACTIONS, CATALOGUE, PRESS, REST, SCENES, SIZE_SCALE, UNSEEN_OBJECTS
 from touchanything.devices.sim.episode_stats import CAMERAS, EpisodeStats
-from touchanything.devices.sim.hand_model import HandState, hand_state
+from touchanything.devices.sim.hand_model import HandState
 from touchanything.devices.sim.pose_estimate import camera_from_wilor, estimate_joints, hidden_share, smooth_noise, wilor_joints
 from touchanything.devices.sim.renderer import Capsules, Lighting, Scene, render
 from touchanything.devices.sim.rig import quat_wxyz, rokoko_joints, tracker_poses
@@ -23,7 +23,7 @@ from touchanything.devices.sim.script_base import SIDES
 from touchanything.devices.sim.shadows import cast_shadows
 from touchanything.devices.sim.shapes import FaceSet, Shape
 from touchanything.devices.sim.task_scripts import NEAR_MISSES, Planner
-from touchanything.devices.sim.touch import Glove, cell_pressure, compress_soft
+from touchanything.devices.sim.touch import Glove, touch_frame
 from touchanything.devices.sim.world import make_object, object_timeline, static_faces
 from touchanything.devices.snapshot import FPS, VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
@@ -119,6 +119,29 @@ def _labels(script, times: np.ndarray) -> np.ndarray:
     return labels
 
 
+@dataclass
+class ScriptMotion:
+    """A script sampled at the frame rate: times (T,) s, wrist poses (T, 2, 4, 4), flexion (T, 2, 5), object
+    poses (T, S, 4, 4), action labels (T, 2)."""
+
+    times: np.ndarray
+    hand_poses: np.ndarray
+    flexion: np.ndarray
+    object_poses: np.ndarray
+    labels: np.ndarray
+
+
+def script_motion(objects: list[Shape], script, frames: int) -> ScriptMotion:
+    """Sample `script` (planned over `objects` at their initial poses) at `FPS` for `frames` frames."""
+    times = np.arange(frames) / FPS
+    tracks = [track.sample(times) for track in script.tracks]
+    hand_poses = np.repeat(np.eye(4)[None, None], frames, axis=0).repeat(2, axis=1)
+    for h in range(2):
+        hand_poses[:, h, :3, :3], hand_poses[:, h, :3, 3] = tracks[h][1], tracks[h][0]
+    timeline = object_timeline(objects, script.attachments, hand_poses, times)
+    return ScriptMotion(times, hand_poses, np.stack([tracks[0][2], tracks[1][2]], axis=1), timeline.poses, _labels(script, times))
+
+
 def _pose_valid(head: Camera, joints: np.ndarray, rng: np.random.Generator) -> bool:
     """WiLoR finds a hand when at least 60 % of its joints are in the image, bar 3 % random drop-outs."""
     uv, _, ok = head.project(joints)
@@ -141,13 +164,7 @@ def generate_episode(root: Path, spec: EpisodeSpec, layout: TactileLayout | None
     objects, ids, script, task = plan(spec, rng)
     scene = SCENES[spec.scene]
     frames = int(round(spec.seconds * FPS))
-    times = np.arange(frames) / FPS
-    tracks = [track.sample(times) for track in script.tracks]
-    hand_poses = np.zeros((frames, 2, 4, 4))
-    for h in range(2):
-        hand_poses[:, h] = np.eye(4)
-        hand_poses[:, h, :3, :3], hand_poses[:, h, :3, 3] = tracks[h][1], tracks[h][0]
-    timeline = object_timeline(objects, script.attachments, hand_poses, times)
+    motion = script_motion(objects, script, frames)
     dead = int(rng.integers(2, 19)) if rng.random() < DEAD_COLUMN_PROBABILITY else None
     glove = Glove.draw(rng, dead)
     config = TactileConfig(broken_columns=(("right", dead),) if dead is not None else ())
@@ -159,32 +176,28 @@ def generate_episode(root: Path, spec: EpisodeSpec, layout: TactileLayout | None
     statics = static_faces(scene)
     folder = Path(root) / spec.scene / task / spec.trajectory_id
     stats = EpisodeStats(folder, spec.scene, task, ids, frames, spec.unseen, dead)
-    stats.start_poses(_labels(script, times))
+    stats.start_poses(motion.labels)
     with RawEpisodeWriter(folder, layout, config, crf=23) as writer:
-        for k in range(frames):
-            for shape, pose in zip(objects, timeline.poses[k]):
-                shape.pose = pose
-            hands = [hand_state(SIDES[h], hand_poses[k, h], tracks[h][2][k]) for h in range(2)]
-            compress_soft(objects, hands)
-            pressure = np.stack([cell_pressure(hand, objects) for hand in hands])
-            sway = 0.01 * np.array([np.sin(0.9 * times[k]), np.sin(0.6 * times[k] + 1.0), 0.5 * np.sin(1.3 * times[k])])
-            cameras = [head_camera(head_base + sway, head_target)] + [wrist_camera(SIDES[h], hand_poses[k, h]) for h in range(2)]
+        for k, t in enumerate(motion.times):
+            hands, pressure = touch_frame(objects, motion.object_poses[k], motion.hand_poses[k], motion.flexion[k], SIDES)
+            sway = 0.01 * np.array([np.sin(0.9 * t), np.sin(0.6 * t + 1.0), 0.5 * np.sin(1.3 * t)])
+            cameras = [head_camera(head_base + sway, head_target)] + [wrist_camera(SIDES[h], motion.hand_poses[k, h]) for h in range(2)]
             world = _scene(statics, objects, hands, sleeve, lighting)
             images = [render(camera, world) for camera in cameras]
             stats.record_frame(k, hands, pressure, cameras, objects, k % VISIBILITY_EVERY == 0)
-            estimates = _estimate(k, stats, hands, tracks, hand_poses[k], cameras[0], objects, noise[k], rng)
+            wilor, estimate = _estimate(k, stats, hands, motion, cameras[0], objects, noise[k], rng)
             writer.write(EpisodeFrame(
                 images=dict(zip(VIEW_NAMES, images)),
-                wilor=estimates[0],
-                rokoko=(rokoko_joints(estimates[1]), np.ones(2, bool)),
-                glove=(glove.raw(pressure, layout, rng), np.ones(2, bool), np.stack([quat_wxyz(p[:3, :3]) for p in hand_poses[k]])),
-                trackers=(tracker_poses(cameras[0].pose, hand_poses[k]), np.ones(3, bool)),
+                wilor=wilor,
+                rokoko=(rokoko_joints(estimate), np.ones(2, bool)),
+                glove=(glove.raw(pressure, layout, rng), np.ones(2, bool), np.stack([quat_wxyz(p[:3, :3]) for p in motion.hand_poses[k]])),
+                trackers=(tracker_poses(cameras[0].pose, motion.hand_poses[k]), np.ones(3, bool)),
             ))
     write_camera_matrices(folder / CAMERA_FILE, {name: cam.matrix for name, cam in zip(CAMERAS, cameras)})
     return stats
 
 
-def _estimate(k: int, stats: EpisodeStats, hands: list[HandState], tracks, poses: np.ndarray, head: Camera,
+def _estimate(k: int, stats: EpisodeStats, hands: list[HandState], motion: ScriptMotion, head: Camera,
               objects: list[Shape], noise: np.ndarray, rng: np.random.Generator):
     """The frame's WiLoR stream ((2, 21, 3) joints, (2,) valid) and the estimated world joints (2, 21, 3) the
     Rokoko stream carries; records the pose the model reads in `stats`."""
@@ -192,7 +205,7 @@ def _estimate(k: int, stats: EpisodeStats, hands: list[HandState], tracks, poses
     wilor, valid, world = [], [], []
     for h, hand in enumerate(hands):
         hidden = hidden_share(head, hand.joints, objects, hands[1 - h])
-        world.append(estimate_joints(SIDES[h], poses[h], tracks[h][2][k], head, noise[h], hidden))
+        world.append(estimate_joints(SIDES[h], motion.hand_poses[k, h], motion.flexion[k, h], head, noise[h], hidden))
         valid.append(_pose_valid(head, hand.joints, rng))
         wilor.append(wilor_joints(head, world[-1], depth_scale, rng))
         stats.record_estimate(k, h, camera_from_wilor(wilor[-1].astype(np.float64), depth_scale), valid[-1], hidden)

@@ -4,8 +4,10 @@ Definition (per data set, per hand side): a hand-frame is one hand in one frame 
 its pose is the hand's 21 true joints in the head-camera frame (metres). The pose tolerance τ is the median,
 over all hand-frames, of the RMS joint distance between the pose the model reads (`wilor_hands.json`, depth
 scaling undone) and the truth. A contact hand-frame (a tactile cell above 0.1), taken every fifth frame, is
-**pose-ambiguous** when some no-contact hand-frame of the same side, anywhere in the data set, has a true
-pose within τ of it (RMS joint distance ≤ τ): the pose the model gets cannot tell the two apart.
+**pose-ambiguous** when some no-contact hand-frame of the same side has a true pose within τ of it (RMS joint
+distance ≤ τ) — in another episode, or in the same one at least 15 frames (0.5 s, the span of the model's
+clip) away: the pose the model gets cannot tell the two apart, and its clip cannot hold both. (Frames
+closer than that, such as the moment before a touch, are left out.)
 """
 from __future__ import annotations
 
@@ -15,14 +17,16 @@ from touchanything.devices.sim.episode_stats import EpisodeStats
 from touchanything.devices.sim.script_base import SIDES
 
 SAMPLE_EVERY = 5
+APART = 15
 CHUNK = 256
 OCCLUDED = 0.25
 """A hand-frame with more than this share of its joints hidden from the head camera counts as occluded."""
 
 
-def nearest_rms(queries: np.ndarray, pool: np.ndarray) -> np.ndarray:
-    """(Q,) the smallest RMS joint distance (metres) from each (Q, 21, 3) query pose to any (P, 21, 3) pool
-    pose; inf when the pool is empty."""
+def nearest_rms(queries: np.ndarray, pool: np.ndarray, query_keys: np.ndarray, pool_keys: np.ndarray) -> np.ndarray:
+    """(Q,) the smallest RMS joint distance (metres) from each (Q, 21, 3) query pose to a (P, 21, 3) pool pose,
+    leaving out the pool poses of the same episode fewer than `APART` frames away; keys (N, 2) are (episode,
+    frame). inf where no pool pose is left."""
     if len(pool) == 0 or len(queries) == 0:
         return np.full(len(queries), np.inf)
     q = queries.reshape(len(queries), 63).astype(np.float64)
@@ -30,8 +34,10 @@ def nearest_rms(queries: np.ndarray, pool: np.ndarray) -> np.ndarray:
     p_norm = np.einsum("ij,ij->i", p, p)
     out = np.empty(len(q))
     for start in range(0, len(q), CHUNK):
-        block = q[start:start + CHUNK]
+        block, keys = q[start:start + CHUNK], query_keys[start:start + CHUNK]
         squared = np.einsum("ij,ij->i", block, block)[:, None] + p_norm[None] - 2.0 * block @ p.T
+        near = (keys[:, :1] == pool_keys[None, :, 0]) & (np.abs(keys[:, 1:] - pool_keys[None, :, 1]) < APART)
+        squared[near] = np.inf
         out[start:start + CHUNK] = np.sqrt(np.maximum(squared.min(axis=1), 0.0) / 21.0)
     return out
 
@@ -52,15 +58,18 @@ def pose_statistics(results: list[EpisodeStats]) -> dict:
     per_task: dict[str, list[int]] = {}
     total = [0, 0]
     for h, side in enumerate(SIDES):
-        free = np.concatenate([s.poses[s.pose_valid[:, h] & ~s.touching[:, h], h] for s in results])
-        queries, labels = [], []
-        for s in results:
-            sampled = np.zeros(s.frames, bool)
-            sampled[::SAMPLE_EVERY] = True
-            chosen = sampled & s.pose_valid[:, h] & s.touching[:, h]
-            queries.append(s.poses[chosen, h])
-            labels += [f"{side}/{label}" for label in s.labels[chosen, h]]
-        ambiguous = nearest_rms(np.concatenate(queries), free) <= tolerance
+        free, free_keys, queries, query_keys, labels = [], [], [], [], []
+        for e, stats in enumerate(results):
+            frames = np.arange(stats.frames)
+            free_mask = stats.pose_valid[:, h] & ~stats.touching[:, h]
+            chosen = (frames % SAMPLE_EVERY == 0) & stats.pose_valid[:, h] & stats.touching[:, h]
+            free.append(stats.poses[free_mask, h])
+            free_keys.append(np.stack([np.full(free_mask.sum(), e), frames[free_mask]], axis=1))
+            queries.append(stats.poses[chosen, h])
+            query_keys.append(np.stack([np.full(chosen.sum(), e), frames[chosen]], axis=1))
+            labels += [f"{side}/{label}" for label in stats.labels[chosen, h]]
+        nearest = nearest_rms(*(np.concatenate(a) for a in (queries, free, query_keys, free_keys)))
+        ambiguous = nearest <= tolerance
         for label, hit in zip(labels, ambiguous):
             entry = per_task.setdefault(label, [0, 0])
             entry[0] += int(hit)

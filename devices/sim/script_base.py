@@ -3,6 +3,7 @@ the hand poses the actions share, and their common geometry (contact flexion, cl
 reach, retreat and idle drifting)."""
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -11,6 +12,7 @@ from touchanything.devices.sim.hand_model import FINGER_COLUMNS, FINGER_ORDER, P
 from touchanything.devices.sim.motion import HandTrack, frame_rotation
 from touchanything.devices.sim.shapes import Shape, pose_at
 from touchanything.devices.sim.touch import world_sdf
+from touchanything.devices.snapshot import FPS
 
 SIDES = ("left", "right")
 PALM_SURFACE = np.array([PALM_CENTRE[0], PALM_CENTRE[1], PALM_HALF[2]])
@@ -185,6 +187,24 @@ class ScriptBuilder:
         position, rotation, _ = track.last
         t = track.add(t + 0.3, position + rotation[:, 2] * -0.05 + np.array([0, 0, 0.03]), rotation, OPEN_FLEX)
         return self.reach(hand, t, self.rest_at[hand], PALM_DOWN, REST_FLEX, 0.6)
+
+    def touches(self, hand: int, start: float, end: float) -> bool:
+        """Whether the hand's tactile points touch a surface at any frame (30 Hz) from `start` to `end`, the
+        objects where they are now."""
+        positions, rotations, flexion = self.script.tracks[hand].sample(np.arange(start, end, 1.0 / FPS))
+        for position, rotation, flex in zip(positions, rotations, flexion):
+            state = hand_state(SIDES[hand], pose_at(position, rotation), flex)
+            if world_sdf(state.cell_points[~np.isnan(state.cell_points[..., 0])], self.objects).min() <= 0.0:
+                return True
+        return False
+
+    def snapshot(self) -> tuple[Script, list[np.ndarray]]:
+        return copy.deepcopy(self.script), [shape.pose.copy() for shape in self.objects]
+
+    def restore(self, saved: tuple[Script, list[np.ndarray]]) -> None:
+        self.script = copy.deepcopy(saved[0])
+        for shape, pose in zip(self.objects, saved[1]):
+            shape.pose = pose.copy()
 
     def attach(self, obj: int, hand: int, start: float, end: float) -> None:
         """The object follows the hand rigidly from `start` to `end`."""

@@ -21,6 +21,7 @@ import numpy as np
 from touchanything.devices.sim.hand_model import HandState
 from touchanything.devices.sim.renderer import Lighting
 from touchanything.devices.sim.shapes import Shape
+from touchanything.devices.sim.world import TABLE_X, TABLE_Y
 
 PENUMBRA = 0.15
 CONTACT_RANGE = 0.025
@@ -45,15 +46,18 @@ class Shadow:
 @dataclass
 class _Support:
     height: float
-    outline: np.ndarray | None
-    """(K, 2) convex outline of an object's top in world x, y; None for the (unbounded) table."""
+    outline: np.ndarray
+    """(K, 2) convex outline in world x, y."""
     patches: list[tuple[np.ndarray, np.ndarray]]
-    """The top's faces as drawn: (outline (K, 2), centroid (3,)) each."""
+    """An object top's faces as drawn: (outline (K, 2), centroid (3,)) each; none for the table."""
+
+
+TABLE_OUTLINE = np.array([[TABLE_X[0], TABLE_Y[0]], [TABLE_X[1], TABLE_Y[0]], [TABLE_X[1], TABLE_Y[1]], [TABLE_X[0], TABLE_Y[1]]])
 
 
 def _supports(objects: list[Shape]) -> list[_Support]:
     """The table and the tops of the upright boxes and cylinders."""
-    out = [_Support(0.0, None, [])]
+    out = [_Support(0.0, TABLE_OUTLINE, [])]
     for shape in objects:
         if shape.kind == "sphere" or abs(shape.pose[2, 2]) < 0.999:
             continue
@@ -110,7 +114,7 @@ def cast_shadows(hands: list[HandState], objects: list[Shape], lighting: Lightin
     shadows = []
     for support in _supports(objects):
         for points, radius, contact in _casters(hands, objects):
-            if not contact and support.outline is not None:
+            if not contact and support.patches:
                 continue
             heights = points[:, 2] - support.height
             if heights.max() < 0.0 or heights.min() + radius < -0.01:
@@ -127,12 +131,11 @@ def cast_shadows(hands: list[HandState], objects: list[Shape], lighting: Lightin
 
 def _on(support: _Support, outline: np.ndarray, opacity: float) -> list[Shadow]:
     """The shadow outline on the table, or cut into the pieces lying on each face of an object's top."""
-    if opacity <= 0.01:
+    whole = _clip(outline, support.outline) if opacity > 0.01 else None
+    if whole is None:
         return []
-    if support.outline is None:
-        return [Shadow(_lay(outline, support.height), float(opacity), None)]
-    if _clip(outline, support.outline) is None:
-        return []
+    if not support.patches:
+        return [Shadow(_lay(whole, support.height), float(opacity), None)]
     pieces = [(_clip(outline, patch), centroid) for patch, centroid in support.patches]
     return [Shadow(_lay(piece, support.height), float(opacity), centroid) for piece, centroid in pieces if piece is not None]
 

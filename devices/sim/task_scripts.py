@@ -18,6 +18,7 @@ from touchanything.devices.sim.catalogue import (
     REST_HOVER,
     SLIDE,
     SQUEEZE,
+    UNTOUCHED,
 )
 from touchanything.devices.sim.grasp_actions import GraspActions
 from touchanything.devices.sim.script_base import OPEN_FLEX
@@ -49,9 +50,21 @@ class Planner(GraspActions, SurfaceActions):
     def run(self, action: str, t: float, where: Where, hand: int, variant: str | None = None) -> float:
         """Perform one action on object `where` (or, for press and rest, a table point), by `hand` for the
         one-handed actions, as `variant` (one of its `NEAR_MISSES`, or None for the action itself); returns
-        its end time."""
+        its end time. A near miss whose hand would touch anything on the way (checked frame by frame) is
+        replaced by the action itself."""
         for track in self.script.tracks:
             track.hold(t)
+        if variant is None:
+            return self._perform(action, t, where, hand, None)
+        saved = self.snapshot()
+        end = self._perform(action, t, where, hand, variant)
+        segment = self.script.segments[-1]
+        if segment.action in UNTOUCHED and self.touches(segment.hands[-1], segment.start, segment.end):
+            self.restore(saved)
+            end = self._perform(action, t, where, hand, None)
+        return end
+
+    def _perform(self, action: str, t: float, where: Where, hand: int, variant: str | None) -> float:
         if action in (GRASP, SQUEEZE):
             return self.grasp(hand, t, where, lift=action == GRASP, squeeze=action == SQUEEZE, miss=variant == MISS)
         if action == PRESS:

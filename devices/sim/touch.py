@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from touchanything.devices.sim.hand_model import HandState
+from touchanything.devices.sim.hand_model import HandState, hand_state
 from touchanything.devices.sim.shapes import Shape, inverse, transform
 from touchanything.devices.tactile_layout import TactileLayout
 
@@ -47,6 +47,17 @@ def compress_soft(shapes: list[Shape], hands: list[HandState]) -> None:
         below_top = footprint & (local[:, 2] > -half) & (local[:, 2] < half)
         indentation = float((half - local[below_top, 2]).max()) if below_top.any() else 0.0
         shape.squash = min(shape.softness * indentation, MAX_SQUASH * 2 * half)
+
+
+def touch_frame(objects: list[Shape], object_poses: np.ndarray, hand_poses: np.ndarray, flexion: np.ndarray,
+                sides: tuple[str, str] = ("left", "right")) -> tuple[list[HandState], np.ndarray]:
+    """One frame of the world: the objects moved to `object_poses` (S, 4, 4), the hands posed (wrists (2, 4, 4),
+    `flexion` (2, 5)), soft objects compressed; returns the two hands and their (2, 21, 21) pressure."""
+    for shape, pose in zip(objects, object_poses):
+        shape.pose = pose
+    hands = [hand_state(side, hand_poses[h], flexion[h]) for h, side in enumerate(sides)]
+    compress_soft(objects, hands)
+    return hands, np.stack([cell_pressure(hand, objects) for hand in hands])
 
 
 def cell_pressure(hand: HandState, shapes: list[Shape]) -> np.ndarray:
