@@ -28,6 +28,7 @@ from touchanything.devices.rig.pose_transform import (
 )
 from touchanything.devices.sim.cameras import HEAD_FOCAL, HEIGHT, WIDTH, Camera
 from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_episode
+from touchanything.devices.sim.pose_estimate import DEPTH_JITTER, JITTER
 from touchanything.devices.sim.rig import ROKOKO_AXES, rig_calibration, rokoko_joints, tracker_poses
 from touchanything.devices.sim.shapes import pose_at, transform
 from touchanything.devices.snapshot import TRACKER_ROLES
@@ -35,10 +36,10 @@ from touchanything.viz.hand_projection import project_wilor
 
 FAST = settings(max_examples=40, deadline=None)
 CALIBRATION = rig_calibration()
-NOISE = 0.003
-"""The simulator's WiLoR estimator noise per coordinate (devices/sim/episode_generator.py `_wilor`)."""
-DEPTH_NOISE = 0.02
-"""The simulator's WiLoR wrist-depth noise, relative."""
+NOISE = JITTER
+"""WiLoR's per-frame jitter per coordinate in the simulator (the smooth estimation error is in both streams)."""
+DEPTH_NOISE = DEPTH_JITTER
+"""WiLoR's per-frame wrist-depth jitter in the simulator, relative."""
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from touchanything.devices.errors import UserError
-from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfig, check_config, simulate_dataset
+from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfig, check_config, percent, simulate_dataset
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -54,7 +54,12 @@ def run(args: argparse.Namespace) -> int:
         card = simulate_dataset(args.out, config, on_episode=progress)
     print(f"{card['episodes']} episodes, {card['frames']} frames at {card['generation_fps']} frames/s")
     for camera, v in card["contact_visibility"].items():
-        share = "n/a" if v["share"] is None else f"{100 * v['share']:.1f}%"
-        print(f"contact visible from {camera}: {share} of {v['contact_points']} contact points")
+        print(f"contact visible from {camera}: {percent(v['share'])} of {v['contact_points']} contact points")
+    ambiguity, error = card["pose_ambiguity"], card["pose_error_mm"]
+    if ambiguity is not None:
+        print(f"pose error (RMS over joints): median {error['median']} mm, visible hands {error['visible_hand_median']} mm, "
+              f"occluded hands {error['occluded_hand_median']} mm")
+        print(f"pose-ambiguous contact: {percent(ambiguity['ambiguous_share'])} of {ambiguity['contact_frames']} sampled "
+              f"contact hand-frames (a no-contact pose within {ambiguity['tolerance_mm']} mm)")
     print(f"dataset card: {args.out / CARD_MD}; split: {args.out / 'split.json'}")
     return 0

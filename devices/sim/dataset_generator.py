@@ -1,5 +1,6 @@
 """Generate a simulated EgoTouch dataset: N episodes over the five scene categories, a `split.json` with
-seen and unseen objects, and a dataset card (counts, contact statistics, contact visibility per camera).
+seen and unseen objects, and a dataset card (counts, contact statistics, contact visibility per camera, the
+pose error and the share of contact the pose alone cannot decide).
 """
 from __future__ import annotations
 
@@ -16,7 +17,9 @@ import numpy as np
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, partition_seen
 from touchanything.devices.errors import UserError
 from touchanything.devices.sim.catalogue import SCENES, UNSEEN_OBJECTS
-from touchanything.devices.sim.episode_generator import CAMERAS, EpisodeSpec, EpisodeStats, generate_episode
+from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_episode
+from touchanything.devices.sim.episode_stats import CAMERAS, EpisodeStats
+from touchanything.devices.sim.pose_ambiguity import pose_statistics
 
 UNSEEN_SHARE = 0.2
 CARD_JSON, CARD_MD = "dataset_card.json", "dataset_card.md"
@@ -124,12 +127,14 @@ def dataset_card(results: list[EpisodeStats], config: SimulationConfig, seconds:
         "dead_column_episodes": sum(s.dead_column is not None for s in results),
         "contact_by_hand_and_task": contact,
         "contact_visibility": per_camera,
+        **pose_statistics(results),
         "episodes_list": [{"path": s.folder.relative_to(out).as_posix(), "task": s.task, "objects": s.objects,
                            "dead_right_column": s.dead_column} for s in results],
     }
 
 
-def _share(value: float | None) -> str:
+def percent(value: float | None) -> str:
+    """A share as '12.3%', or 'n/a'."""
     return "n/a" if value is None else f"{100 * value:.1f}%"
 
 
@@ -140,11 +145,27 @@ def card_markdown(card: dict) -> str:
              f"Episodes with unseen objects ({', '.join(card['unseen_objects'])}): {card['episodes_with_unseen_objects']}; "
              f"with a dead right-glove column (repaired in the ground truth): {card['dead_column_episodes']}.", "",
              "## Contact share (a tactile cell above 0.1) per hand and task", "", "| hand/task | frames | contact |", "|---|---|---|"]
-    lines += [f"| {k} | {v['frames']} | {_share(v['contact_share'])} |" for k, v in card["contact_by_hand_and_task"].items()]
+    lines += [f"| {k} | {v['frames']} | {percent(v['contact_share'])} |" for k, v in card["contact_by_hand_and_task"].items()]
     lines += ["", "## Contact visibility per camera", "",
               "Of the tactile points in contact, the share each camera sees (inside the image, line of sight not "
               "blocked by a hand, the table or another object).", "",
               "| camera | contact points | visible | own hand only |", "|---|---|---|---|"]
     for camera, v in card["contact_visibility"].items():
-        lines.append(f"| {camera} | {v['contact_points']} | {_share(v['share'])} | {_share(v.get('own_hand_share'))} |")
-    return "\n".join(lines) + "\n"
+        lines.append(f"| {camera} | {v['contact_points']} | {percent(v['share'])} | {percent(v.get('own_hand_share'))} |")
+    return "\n".join(lines + _pose_markdown(card)) + "\n"
+
+
+def _pose_markdown(card: dict) -> list[str]:
+    error, ambiguity = card["pose_error_mm"], card["pose_ambiguity"]
+    if error is None:
+        return []
+    lines = ["", "## Pose error and pose ambiguity", "",
+             f"RMS joint error of the WiLoR pose (head-camera frame, mm): median {error['median']}, 90th percentile "
+             f"{error['p90']}; hands at most a quarter hidden from the head camera {error['visible_hand_median']}, more "
+             f"hidden {error['occluded_hand_median']}.", "",
+             f"Pose-ambiguous contact: {percent(ambiguity['ambiguous_share'])} of {ambiguity['contact_frames']} sampled contact "
+             f"hand-frames have a no-contact hand-frame whose true pose is within the median pose error "
+             f"({ambiguity['tolerance_mm']} mm RMS over the joints; docs/simulator.md).", "",
+             "| hand/task | contact frames (sampled) | pose-ambiguous |", "|---|---|---|"]
+    lines += [f"| {k} | {v['contact_frames']} | {percent(v['ambiguous_share'])} |" for k, v in ambiguity["by_hand_and_task"].items()]
+    return lines

@@ -104,17 +104,34 @@ def _segment_cells(points: np.ndarray, normals: np.ndarray, rows, first_col: int
             cell_normals[row, first_col + k] = normal
 
 
+def _chains(flexion: np.ndarray):
+    """Per finger: index, name, clipped flexion, joints (4, 3) MCP→tip and segment normals (3, 3), right-hand frame."""
+    for f, name in enumerate(FINGER_ORDER):
+        flex = float(np.clip(flexion[f], 0.0, 1.0))
+        yield (f, name, flex, *(_thumb_chain(flex) if name == "thumb" else _finger_chain(name, flex)))
+
+
+def _mirror(side: str) -> np.ndarray:
+    return np.array([-1.0 if side == "left" else 1.0, 1.0, 1.0])
+
+
+def hand_joints(side: str, pose: np.ndarray, flexion: np.ndarray) -> np.ndarray:
+    """(21, 3) world joints of a hand posed as in `hand_state` (without its surface: cheaper)."""
+    joints = np.zeros((21, 3))
+    for f, _, _, points, _ in _chains(flexion):
+        joints[1 + 4 * f: 5 + 4 * f] = points
+    return transform(pose, joints * _mirror(side))
+
+
 def hand_state(side: str, pose: np.ndarray, flexion: np.ndarray) -> HandState:
     """Pose a hand: `pose` is the 4×4 world-from-hand transform of the wrist, `flexion` (5,)."""
-    mirror = np.array([-1.0 if side == "left" else 1.0, 1.0, 1.0])
+    mirror = _mirror(side)
     joints = np.zeros((21, 3))
     cells = np.full((21, 21, 3), np.nan)
     normals = np.full((21, 21, 3), np.nan)
     bend = np.full((21, 21), np.nan)
     bones_a, bones_b, radii = [], [], []
-    for f, name in enumerate(FINGER_ORDER):
-        flex = float(np.clip(flexion[f], 0.0, 1.0))
-        points, seg_normals = _thumb_chain(flex) if name == "thumb" else _finger_chain(name, flex)
+    for f, name, flex, points, seg_normals in _chains(flexion):
         joints[1 + 4 * f: 5 + 4 * f] = points
         rows = THUMB_PAD_ROWS if name == "thumb" else PAD_ROWS
         _segment_cells(points, seg_normals, rows, FINGER_COLUMNS[name], cells, normals)

@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation, Slerp
 def min_jerk(s: np.ndarray) -> np.ndarray:
     """The minimum-jerk profile on [0, 1]: 10s³ − 15s⁴ + 6s⁵."""
     s = np.clip(s, 0.0, 1.0)
-    return s ** 3 * (10 - 15 * s + 6 * s * s)
+    return np.clip(s ** 3 * (10 - 15 * s + 6 * s * s), 0.0, 1.0)  # rounding can overshoot 1 by an ulp
 
 
 def frame_rotation(fingers: np.ndarray, palm_normal: np.ndarray) -> np.ndarray:

@@ -1,7 +1,10 @@
 """Painter's-algorithm renderer: faceted objects, capsule bones and spheres drawn far to near with OpenCV.
 
-Occlusion comes from depth ordering of small primitives (box faces are split into tiles, the table into a
-grid), which is exact for non-intersecting convex parts of this size. Lambert shading from one light.
+The ground (table top and wall) is drawn first, then the shadows on the table, then everything else by depth:
+everything stands on the table or in front of the wall, so for a camera above the table this order is exact.
+Among the rest, occlusion comes from depth ordering of small primitives (box faces are split into tiles),
+which is exact for non-intersecting convex parts of this size; a shadow on an object's top is drawn right
+after the top face it lies on. Lambert shading from one light; shadows darken what is under them.
 """
 from __future__ import annotations
 
@@ -39,6 +42,19 @@ class Capsules:
     b: np.ndarray
     radius: np.ndarray
     colour: np.ndarray
+
+
+@dataclass
+class Scene:
+    """What the cameras see: ground faces (table top and wall), the other faces, bones, spheres (centre (3,),
+    radius, RGB colour), shadows (`shadows.Shadow`: polygon (K, 3), opacity, anchor) and the lighting."""
+
+    ground: FaceSet
+    faces: FaceSet
+    capsules: Capsules
+    spheres: list[tuple[np.ndarray, float, np.ndarray]]
+    shadows: list
+    lighting: Lighting
 
 
 @lru_cache(maxsize=32)
@@ -83,21 +99,67 @@ def _draw_sphere(image: np.ndarray, centre: np.ndarray, radius: float, colour: n
                    tuple(int(v) for v in np.clip(colour * gain, 0, 255)), -1, cv2.LINE_AA, SHIFT)
 
 
-def render(camera: Camera, faces: FaceSet, capsules: Capsules,
-           spheres: list[tuple[np.ndarray, float, np.ndarray]], lighting: Lighting) -> np.ndarray:
+def _draw_faces(image: np.ndarray, polygons: np.ndarray, colours: np.ndarray, order: np.ndarray) -> None:
+    for i in order:
+        cv2.fillConvexPoly(image, polygons[i], tuple(colours[i].tolist()), cv2.LINE_AA, SHIFT)
+
+
+def _darken(image: np.ndarray, camera: Camera, shadows: list) -> None:
+    """Darken the image under the shadows' projected polygons (overlapping shadows darken once, by the most
+    opaque)."""
+    if not shadows:
+        return
+    sizes = np.array([len(shadow.polygon) for shadow in shadows])
+    uv_all, _, ok_all = camera.project(np.concatenate([shadow.polygon for shadow in shadows]))
+    splits = np.cumsum(sizes)[:-1]
+    projected = [(uv, shadow.opacity) for uv, ok, shadow in zip(np.split(uv_all, splits), np.split(ok_all, splits), shadows) if ok.all()]
+    if not projected:
+        return
+    corners = np.concatenate([uv for uv, _ in projected])
+    lo = np.maximum(np.floor(corners.min(axis=0)).astype(int), 0)
+    hi = np.minimum(np.ceil(corners.max(axis=0)).astype(int) + 1, [camera.width, camera.height])
+    if np.any(hi <= lo):
+        return
+    alpha = np.zeros((hi[1] - lo[1], hi[0] - lo[0]), np.float32)
+    for uv, opacity in projected:
+        a = np.clip(np.floor(uv.min(axis=0)).astype(int) - lo, 0, None)
+        b = np.clip(np.ceil(uv.max(axis=0)).astype(int) + 1 - lo, None, alpha.shape[::-1])
+        if np.any(b <= a):
+            continue
+        mask = np.zeros((b[1] - a[1], b[0] - a[0]), np.uint8)
+        cv2.fillPoly(mask, [np.round((uv - lo - a) * SCALE).astype(np.int32)], 255, cv2.LINE_AA, SHIFT)
+        window = alpha[a[1]:b[1], a[0]:b[0]]
+        np.maximum(window, mask * np.float32(opacity / 255.0), out=window)
+    region = image[lo[1]:hi[1], lo[0]:hi[0]]
+    keep = np.round(255.0 * (1.0 - alpha)).astype(np.uint8)
+    region[:] = cv2.multiply(region, cv2.merge([keep, keep, keep]), scale=1.0 / 255.0)
+
+
+def render(camera: Camera, scene: Scene) -> np.ndarray:
     """(H, W, 3) uint8 RGB image of the scene from `camera`."""
+    lighting = scene.lighting
     image = _background(camera.height, camera.width, lighting.background_top, lighting.background_bottom).copy()
-    face_depth, polygons, face_colours = _faces(camera, faces, lighting)
-    bone_depth, ends, thickness, bone_colours = _capsules(camera, capsules)
+    ground_depth, ground_polygons, ground_colours = _faces(camera, scene.ground, lighting)
+    _draw_faces(image, ground_polygons, ground_colours, np.argsort(-ground_depth, kind="stable"))
+    _darken(image, camera, [s for s in scene.shadows if s.anchor is None])
+    face_depth, polygons, face_colours = _faces(camera, scene.faces, lighting)
+    bone_depth, ends, thickness, bone_colours = _capsules(camera, scene.capsules)
     ball_depth, balls = [], []
-    for centre, radius, colour in spheres:
+    for centre, radius, colour in scene.spheres:
         uv, dist, ok = camera.project(centre[None])
         if ok[0] and dist[0] > radius:
             ball_depth.append(dist[0])
             balls.append((uv[0], float(camera.pixel_radius(radius, dist)[0]), colour * lighting.gain))
-    depth = np.concatenate([face_depth, bone_depth, np.asarray(ball_depth, float)])
-    kind = np.concatenate([np.zeros(len(face_depth), int), np.ones(len(bone_depth), int), np.full(len(balls), 2)])
-    index = np.concatenate([np.arange(len(face_depth)), np.arange(len(bone_depth)), np.arange(len(balls))])
+    layers: dict[tuple, list] = {}
+    for shadow in scene.shadows:
+        if shadow.anchor is not None:
+            layers.setdefault(tuple(shadow.anchor), []).append(shadow)
+    layer_depth = [np.linalg.norm(np.asarray(anchor) - camera.centre) - 1e-4 for anchor in layers]
+    depth = np.concatenate([face_depth, bone_depth, np.asarray(ball_depth, float), np.asarray(layer_depth, float)])
+    counts = (len(face_depth), len(bone_depth), len(balls), len(layers))
+    kind = np.repeat(np.arange(4), counts)
+    index = np.concatenate([np.arange(n) for n in counts])
+    shadow_layers = list(layers.values())
     for k in np.argsort(-depth, kind="stable"):
         i = index[k]
         if kind[k] == 0:
@@ -105,6 +167,8 @@ def render(camera: Camera, faces: FaceSet, capsules: Capsules,
         elif kind[k] == 1:
             cv2.line(image, tuple(ends[i, 0].tolist()), tuple(ends[i, 1].tolist()), tuple(bone_colours[i].tolist()),
                      int(thickness[i]), cv2.LINE_AA, SHIFT)
-        else:
+        elif kind[k] == 2:
             _draw_sphere(image, *balls[i])
+        else:
+            _darken(image, camera, shadow_layers[i])
     return image

@@ -59,6 +59,8 @@ class Shape:
     """kind: box (size = half extents x, y, z) | cylinder (radius, half height) | sphere (radius).
 
     pattern: plain | stripes | checker, drawn with `accent` as the second colour.
+    softness: the share of an indentation from above that a box or cylinder gives way (0 = rigid); `squash` is
+    its current compression (metres) along its own z axis, the bottom staying put (`touch.compress_soft`).
     """
 
     kind: str
@@ -67,29 +69,37 @@ class Shape:
     pose: np.ndarray = field(default_factory=lambda: np.eye(4))
     pattern: str = "plain"
     accent: tuple[int, int, int] = (255, 255, 255)
+    softness: float = 0.0
+    squash: float = 0.0
     _local: FaceSet | None = field(default=None, repr=False, compare=False)
 
     def sdf(self, points: np.ndarray) -> np.ndarray:
-        """Signed distance (metres) of (N, 3) world points; negative inside."""
+        """Signed distance (metres) of (N, 3) world points to the (compressed) shape; negative inside."""
         p = transform(inverse(self.pose), points)
         if self.kind == "sphere":
             return np.linalg.norm(p, axis=-1) - self.size[0]
+        half = self.height - self.squash / 2
+        p[..., 2] += self.squash / 2
         if self.kind == "box":
-            q = np.abs(p) - np.asarray(self.size)
+            q = np.abs(p) - np.array([self.size[0], self.size[1], half])
         else:
-            q = np.stack([np.linalg.norm(p[..., :2], axis=-1) - self.size[0], np.abs(p[..., 2]) - self.size[1]], -1)
+            q = np.stack([np.linalg.norm(p[..., :2], axis=-1) - self.size[0], np.abs(p[..., 2]) - half], -1)
         return np.linalg.norm(np.maximum(q, 0.0), axis=-1) + np.minimum(q.max(axis=-1), 0.0)
 
     @property
     def height(self) -> float:
-        """Half height along the object's z axis."""
+        """Half height along the object's z axis, uncompressed."""
         return self.size[0] if self.kind == "sphere" else self.size[2] if self.kind == "box" else self.size[1]
 
     def faces(self) -> FaceSet:
         """The faceted surface in world coordinates (spheres are drawn as discs, so they have none)."""
         if self._local is None:
             self._local = self._local_faces()
-        return self._local.moved(self.pose)
+        if not self.squash:
+            return self._local.moved(self.pose)
+        vertices = self._local.vertices.copy()
+        vertices[..., 2] = (vertices[..., 2] + self.height) * (1.0 - self.squash / (2 * self.height)) - self.height
+        return FaceSet(vertices, self._local.normals, self._local.colours).moved(self.pose)
 
     def _local_faces(self) -> FaceSet:
         quads, normals, colours = [], [], []

@@ -1,9 +1,10 @@
 """Touch: cell pressure from how far each tactile point penetrates the world, and the glove's raw bytes.
 
 Pressure (normalised, before the glove) = 1 − exp(−depth / 5 mm) for a surface point `depth` inside an
-object or below the table top; bend cells follow finger flexion. The glove turns it into raw uint8 slots:
-a static per-slot bias, per-slot gain, Gaussian noise, 8-bit quantisation and saturation at 255, and
-optionally a dead display column on the right glove.
+object or below the table top; bend cells follow finger flexion. A soft object gives way first: pressed from
+above by `d`, it compresses by softness · d (visibly) and the hand is left (1 − softness) · d inside it.
+The glove turns it into raw uint8 slots: a static per-slot bias, per-slot gain, Gaussian noise, 8-bit
+quantisation and saturation at 255, and optionally a dead display column on the right glove.
 """
 from __future__ import annotations
 
@@ -11,13 +12,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from touchanything.devices.sim.hand_model import HandState
-from touchanything.devices.sim.shapes import Shape
+from touchanything.devices.sim.hand_model import HandState, hand_state
+from touchanything.devices.sim.shapes import Shape, inverse, transform
 from touchanything.devices.tactile_layout import TactileLayout
 
 DEPTH_SCALE = 0.005
 FULL_SCALE_RAW = 235.0
 BEND_RAW = 150.0
+MAX_SQUASH = 0.6
+"""A soft object compresses by at most this share of its height."""
 
 
 def world_sdf(points: np.ndarray, shapes: list[Shape]) -> np.ndarray:
@@ -26,6 +29,35 @@ def world_sdf(points: np.ndarray, shapes: list[Shape]) -> np.ndarray:
     for shape in shapes:
         distance = np.minimum(distance, shape.sdf(points))
     return distance
+
+
+def compress_soft(shapes: list[Shape], hands: list[HandState]) -> None:
+    """Set each soft object's `squash`: softness × the deepest indentation of a tactile point from the top of the
+    uncompressed object (points inside its footprint and below its top), at most `MAX_SQUASH` of its height."""
+    points = np.concatenate([hand.cell_points[~np.isnan(hand.cell_points[..., 0])] for hand in hands])
+    for shape in shapes:
+        if not shape.softness:
+            continue
+        local = transform(inverse(shape.pose), points)
+        half = shape.height
+        if shape.kind == "box":
+            footprint = np.all(np.abs(local[:, :2]) <= shape.size[:2], axis=1)
+        else:
+            footprint = np.linalg.norm(local[:, :2], axis=1) <= shape.size[0]
+        below_top = footprint & (local[:, 2] > -half) & (local[:, 2] < half)
+        indentation = float((half - local[below_top, 2]).max()) if below_top.any() else 0.0
+        shape.squash = min(shape.softness * indentation, MAX_SQUASH * 2 * half)
+
+
+def touch_frame(objects: list[Shape], object_poses: np.ndarray, hand_poses: np.ndarray, flexion: np.ndarray,
+                sides: tuple[str, str] = ("left", "right")) -> tuple[list[HandState], np.ndarray]:
+    """One frame of the world: the objects moved to `object_poses` (S, 4, 4), the hands posed (wrists (2, 4, 4),
+    `flexion` (2, 5)), soft objects compressed; returns the two hands and their (2, 21, 21) pressure."""
+    for shape, pose in zip(objects, object_poses):
+        shape.pose = pose
+    hands = [hand_state(side, hand_poses[h], flexion[h]) for h, side in enumerate(sides)]
+    compress_soft(objects, hands)
+    return hands, np.stack([cell_pressure(hand, objects) for hand in hands])
 
 
 def cell_pressure(hand: HandState, shapes: list[Shape]) -> np.ndarray:

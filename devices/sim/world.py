@@ -34,10 +34,11 @@ def static_faces(scene: SceneCategory) -> FaceSet:
     return FaceSet.concat([table, wall])
 
 
-def make_object(object_id: str, x: float, y: float) -> Shape:
-    """A catalogue object resting on the table with its centre above (x, y)."""
+def make_object(object_id: str, x: float, y: float, scale: float = 1.0) -> Shape:
+    """A catalogue object, its size times `scale`, resting on the table with its centre above (x, y)."""
     spec = CATALOGUE[object_id]
-    shape = Shape(spec.kind, spec.size, spec.colour, pattern=spec.pattern, accent=spec.accent)
+    size = tuple(scale * v for v in spec.size)
+    shape = Shape(spec.kind, size, spec.colour, pattern=spec.pattern, accent=spec.accent, softness=spec.softness)
     shape.pose = pose_at([x, y, shape.height])
     return shape
 

@@ -9,8 +9,8 @@ import numpy as np
 
 from touchanything.devices.hardware.rokoko_protocol import HAND_JOINT_NAMES
 from touchanything.devices.sim.hand_model import hand_state
+from touchanything.devices.sim.script_base import PALM_DOWN, REST_FLEX, SIDES
 from touchanything.devices.sim.shapes import pose_at
-from touchanything.devices.sim.task_scripts import PALM_DOWN, REST_FLEX, SIDES
 
 BODY_JOINTS = (
     "hip", "spine", "chest", "neck", "head",
