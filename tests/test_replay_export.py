@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from touchanything.app.cli import main
+from touchanything.app.sessions.replay_export import ReplaySummary
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.tactile_layout import TactileLayout
@@ -18,6 +19,7 @@ def test_replay_exports_a_playable_video_with_metrics(episode_dir, tmp_path, cap
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "frames    40 written, 40 with a prediction" in printed and "contact_iou" in printed
+    assert "contact   lamps agree on " in printed and "; 40 frames)" in printed
     with VideoReader(out) as video:
         assert video.num_frames == 40
         frame = video.read(39)
@@ -33,7 +35,15 @@ def test_an_episode_without_ground_truth_shows_the_prediction_only(episode_dir, 
         assert episode.pressure is None
     assert main(["replay", str(episode_dir), "--headless", "--out", str(tmp_path / "r.mp4")]) == 0
     printed = capsys.readouterr().out
-    assert "metrics   n/a" in printed and "40 with a prediction" in printed
+    assert "metrics   n/a" in printed and "40 with a prediction" in printed and "lamps" not in printed
+
+
+def test_the_lamp_agreement_counts_each_hand():
+    summary = ReplaySummary()
+    summary.add_lamps(np.array([True, False]), np.array([True, True]))
+    summary.add_lamps(np.array([False, False]), np.array([True, False]))
+    assert summary.lamps_agree == [1, 1] and summary.lamps_shown == 2
+    assert summary.lamp_line().startswith("contact   lamps agree on 50.0 % of the predicted frames (left 50.0 %, right 50.0 %")
 
 
 def test_replay_errors_are_one_clear_line(episode_dir, tmp_path, capsys):
