@@ -75,7 +75,7 @@ def ensure_display() -> subprocess.Popen | None:
     if shutil.which("Xvfb") is None:
         raise SystemExit("no X display and no Xvfb (apt-get install xvfb xauth)")
     os.environ["DISPLAY"] = ":97"
-    server = subprocess.Popen(["Xvfb", ":97", "-screen", "0", "1920x1080x24", "-nolisten", "tcp"],
+    server = subprocess.Popen(["Xvfb", ":97", "-screen", "0", "1920x1080x24", "-nolisten", "tcp", "-noreset"],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 15
     while display_problem() is not None and time.monotonic() < deadline:

@@ -131,7 +131,9 @@ def x_display():
     if shutil.which("Xvfb") is None:
         pytest.skip("Xvfb is not installed (apt-get install xvfb xauth)")
     display = f":{_free_display_number()}"
-    server = subprocess.Popen(["Xvfb", display, "-screen", "0", "1920x1080x24", "-nolisten", "tcp"],
+    # -noreset: an X server resets when its last client leaves, and a client connecting during the reset
+    # fails (GLFW then aborts the process); the tests open one dashboard after another.
+    server = subprocess.Popen(["Xvfb", display, "-screen", "0", "1920x1080x24", "-nolisten", "tcp", "-noreset"],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 15

@@ -6,6 +6,7 @@ from __future__ import annotations
 import multiprocessing
 import threading
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -27,9 +28,10 @@ NANO = ModelChoice(default_checkpoint())
 
 
 def in_fresh_process(function, *args):
-    """function(*args) in a new interpreter (spawn); its result or its exception comes back."""
-    with multiprocessing.get_context("spawn").Pool(1) as pool:
-        return pool.apply_async(function, args).get(timeout=600)
+    """function(*args) in a new interpreter (spawn); its result or its exception comes back, and a process
+    that dies (dearpygui aborts it when it cannot open the display) fails the test at once (BrokenProcessPool)."""
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return pool.submit(function, *args).result(timeout=600)
 
 
 def crop(image: np.ndarray, rect: tuple[int, int, int, int]) -> np.ndarray:
