@@ -9,7 +9,8 @@ import ctypes.util
 import functools
 import os
 import socket
-from collections.abc import Iterator
+
+from touchanything.devices.quiet_stderr import quiet_stderr
 
 X11_SOCKET_DIR = "/tmp/.X11-unix"
 X11_TCP_BASE = 6000
@@ -42,7 +43,7 @@ def _open_problem(display: str) -> str | None:
     xlib = _xlib()
     if xlib is None:
         return "the X client library libX11 is not installed (apt-get install libx11-6)"
-    with _stderr_silenced():
+    with quiet_stderr():
         handle = xlib.XOpenDisplay(display.encode())
     if not handle:
         return f"X display {display} refused the connection (not authorised? check XAUTHORITY or the server's xhost list)"
@@ -59,16 +60,3 @@ def _xlib() -> ctypes.CDLL | None:
             xlib.XCloseDisplay.argtypes = [ctypes.c_void_p]
             return xlib
     return None
-
-
-@contextlib.contextmanager
-def _stderr_silenced() -> Iterator[None]:
-    """File descriptor 2 points at /dev/null for the duration (C libraries write to it directly)."""
-    saved = os.dup(2)
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 2)
-        yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)

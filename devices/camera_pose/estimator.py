@@ -15,9 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,6 +26,7 @@ from touchanything.devices.camera_pose.hand_tracks import HandDetection, HandTra
 from touchanything.devices.camera_pose.model_file import read_model
 from touchanything.devices.errors import UserError
 from touchanything.devices.hand_pose import JOINTS_PER_HAND
+from touchanything.devices.quiet_stderr import quiet_stderr
 from touchanything.devices.snapshot import POSE_FROM_CAMERA
 
 STAGE = "hand pose"
@@ -84,19 +83,6 @@ def hands_found(valid: np.ndarray) -> str:
             (False, False): "no hand found"}[(left, right)]
 
 
-@contextlib.contextmanager
-def _quiet_stderr() -> Iterator[None]:
-    """File descriptor 2 on /dev/null for the duration (MediaPipe's C++ logging writes there directly)."""
-    saved = os.dup(2)
-    try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 2)
-        yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-
-
 class HandPoseEstimator:
     """`estimate(image, timestamp_ms)` per frame, in order; `close()` (or `with`) releases MediaPipe. A
     missing or wrong model file is a UserError when the estimator is made."""
@@ -115,7 +101,7 @@ class HandPoseEstimator:
 
         options = vision.HandLandmarkerOptions(base_options=BaseOptions(model_asset_buffer=self._model),
                                                running_mode=vision.RunningMode.VIDEO, num_hands=2)
-        with _quiet_stderr():
+        with quiet_stderr():
             self._landmarker = vision.HandLandmarker.create_from_options(options)
         self._first = True
 
@@ -148,7 +134,7 @@ class HandPoseEstimator:
         self._last_ms = timestamp_ms
         height, width = image.shape[:2]
         frame = mp.Image(image_format=mp.ImageFormat.SRGB, data=np.ascontiguousarray(image, dtype=np.uint8))
-        with _quiet_stderr() if self._first else contextlib.nullcontext():
+        with quiet_stderr() if self._first else contextlib.nullcontext():
             result = self._landmarker.detect_for_video(frame, timestamp_ms)
         self._first = False
         detections = []
