@@ -20,7 +20,7 @@ from touchanything.devices.hardware.threaded_source import now_us
 from touchanything.devices.rig.rig_inputs import RigInput, camera_fill, glove_fill, mocap_fill, trackers_fill
 from touchanything.devices.sim.glove_serial import SimulatedGloveSerial
 from touchanything.devices.sim.rokoko_sender import RokokoSenderConfig, SimulatedRokokoSender
-from touchanything.devices.snapshot import HANDS
+from touchanything.devices.snapshot import HANDS, Snapshot
 
 CAMERA_SIZE = (160, 120)
 CHEST_POSE = np.array([0.1, 1.2, 0.3, 1.0, 0.0, 0.0, 0.0], np.float32)
@@ -66,6 +66,21 @@ class StandInTrackers:
 
     def status(self) -> str:
         return "stand-in chest tracker"
+
+
+def synthetic_snapshot(k: int) -> Snapshot:
+    """Frame k of a recording that names k in every stream: picture, joints, glove ramp (left glove only
+    on even frames), trackers from frame 10 on."""
+    joints = np.full((42, 3), k / 7, np.float32)
+    joints[:, 2] += 40
+    raw = np.stack([(np.arange(256) + k) % 256, np.full(256, k % 256)]).astype(np.uint8)
+    return Snapshot(
+        frame_index=k, t_us=1_000_000 + k * 33_333, images={"ego": frame_picture(k)},
+        joints=joints, joints_valid=np.array([True, k % 3 != 0]),
+        pressure_raw=raw, imu_wxyz=np.array([[1, 0, 0, 0], [0, 1, 0, 0]], np.float32),
+        glove_present=np.array([k % 2 == 0, True]),
+        trackers={"chest": np.full(7, k, np.float32)} if k >= 10 else {},
+    )
 
 
 @dataclass
