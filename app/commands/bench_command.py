@@ -21,6 +21,7 @@ from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_m
 from touchanything.inference.evaluation.bench_report import markdown, target_checks, write_outputs
 from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.model_config import preset
+from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.torch_device import device_label, resolve_device
 from touchanything.inference.model.touch_model import TouchAnything
 
@@ -44,7 +45,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def load_models(folders: list[Path] | None) -> dict[str, TouchAnything]:
+def load_models(folders: list[Path] | None) -> dict[str, TactileModel]:
     """name → model for each folder (default: every bundled model), smallest first by parameter count."""
     folders = folders or sorted(checkpoint.parent for checkpoint in bundled_models().values())
     if not folders:

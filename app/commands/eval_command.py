@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -9,11 +10,13 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from touchanything.app.sessions.bundled import BASELINES, MODELS_DIR, bundled_baselines
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.errors import UserError
 from touchanything.inference.evaluation.evaluation import VIEW_SETS, EvaluationResult, evaluate, vision_share_summary
 from touchanything.inference.evaluation.metrics import DETECTION_METRICS, EVENT_METRICS, METRICS
 from touchanything.inference.model.checkpoint import load_model
+from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.torch_device import (
     DEVICE_HELP,
     PRECISIONS,
@@ -23,7 +26,6 @@ from touchanything.inference.model.torch_device import (
     join_process_group,
     resolve_device,
 )
-from touchanything.inference.model.touch_model import TouchAnything
 from touchanything.viz.comparison_video import comparison_frame, write_comparison_video
 
 TIMING_COLUMNS = DETECTION_METRICS[:3] + EVENT_METRICS[:4]
@@ -50,6 +52,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="also evaluate each view configuration with every frame black (pose only): this checkpoint, "
                              "or CHECKPOINT (e.g. one trained with `train --blank-images`); reports the share of each "
                              "metric that vision carries")
+    parser.add_argument("--baselines", nargs="*", type=Path, metavar="CHECKPOINT",
+                        help="also evaluate baseline checkpoints on the same trajectories and views, their rows beside the "
+                             "model's (given without a checkpoint: the bundled baselines, "
+                             f"{' and '.join(f'models/{name}' for name in BASELINES)})")
     parser.add_argument("--out", type=Path, help="folder for results.json and results.md")
     parser.add_argument("--video", action="store_true", help="also write a comparison video per trajectory into OUT")
     parser.set_defaults(run=run)
@@ -72,9 +78,10 @@ def _table(results: list[EvaluationResult], mode: str, keys: tuple[str, ...]) ->
 
 
 def baseline_pairs(results: list[EvaluationResult]) -> list[tuple[EvaluationResult, EvaluationResult]]:
-    """(real, pose-only) results of the same view configuration."""
-    real = {r.views: r for r in results if not r.blank}
-    return [(real[r.views], r) for r in results if r.blank]
+    """(real, pose-only twin) results of the model for the same view configuration."""
+    model = [r for r in results if not r.baseline]
+    real = {r.views: r for r in model if not r.blank}
+    return [(real[r.views], r) for r in model if r.blank]
 
 
 def _share_table(results: list[EvaluationResult], mode: str) -> list[str]:
@@ -90,13 +97,17 @@ def _share_table(results: list[EvaluationResult], mode: str) -> list[str]:
     return lines + [""]
 
 
-def markdown(results: list[EvaluationResult], split: str, pose_only: str | None = None) -> str:
+def markdown(results: list[EvaluationResult], split: str, pose_only: str | None = None,
+             baselines: dict[str, str] | None = None) -> str:
     """The paper's Table 2 layout (a row per view configuration and scene), stitched and causal, each followed
     by the contact-timing metrics the official module computes but does not report, and by the vision share
-    when pose-only baselines (of the checkpoint `pose_only`) were run."""
+    when pose-only baselines (of the checkpoint `pose_only`) were run; rows "views · NAME" are the baseline
+    checkpoints `baselines` (name → checkpoint)."""
     lines = [f"# Evaluation on `{split}`", ""]
     if pose_only:
         lines += [f"Pose-only rows: `{pose_only}` with every frame black.", ""]
+    for name, checkpoint in (baselines or {}).items():
+        lines += [f"Baseline rows `· {name}`: `{checkpoint}`.", ""]
     for mode, title in (("stitched", "official stitched (average of covering clips)"), ("causal", "causal newest-frame")):
         lines += [f"## {title}", ""] + _table(results, mode, METRICS)
         lines += [f"### {mode}: contact timing (computed officially, not reported)", ""] + _table(results, mode, TIMING_COLUMNS)
@@ -128,17 +139,18 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
 
 
 def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: str, group: ProcessGroup,
-                    blank: bool = False) -> EvaluationResult:
-    """One view configuration (`blank`: its pose-only baseline); the progress bar (main process) shows encoded
-    frames/s and trajectories done."""
+                    blank: bool = False, name: str = "") -> EvaluationResult:
+    """One view configuration (`blank`: its pose-only twin; `name`: a baseline's); the progress bar (main
+    process) shows encoded frames/s and trajectories done."""
     mine = len(range(group.rank, len(files), group.world))
     finished = []
-    with tqdm(unit=" frames", unit_scale=True, desc=f"eval {views}{' pose only' if blank else ''}",
+    suffix = f"_{name}" if name else "_pose_only" if blank else ""
+    with tqdm(unit=" frames", unit_scale=True, desc=f"eval {views}{suffix.replace('_', ' ')}",
               disable=not group.is_main) as bar:
         def done(row, episode, prediction, gt) -> None:
             if args.video:
-                name = f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}{'_pose_only' if blank else ''}"
-                write_comparison_video(args.out / f"{name}.mp4", trajectory_frames(episode, prediction.stitched, gt))
+                video = f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}{suffix}"
+                write_comparison_video(args.out / f"{video}.mp4", trajectory_frames(episode, prediction.stitched, gt))
             finished.append(row)
             bar.set_postfix(trajectories=f"{len(finished)}/{mine}")
 
@@ -148,7 +160,8 @@ def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: s
 
 def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> dict:
     """One entry of results.json; a pose-only baseline also carries its `vision_share` per mode and scene."""
-    record = {"views": result.views, "pose_only": result.blank, "stitched": result.summary("stitched"),
+    record = {"views": result.views, "pose_only": result.blank, "baseline": result.baseline or None,
+              "stitched": result.summary("stitched"),
               "causal": result.summary("causal")}
     real = next((r for r, b in baseline_pairs(results) if b is result), None)
     if real is not None:
@@ -156,13 +169,24 @@ def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> 
     return {**record, "trajectories": result.rows}
 
 
-def pose_only_model(args: argparse.Namespace, model: TouchAnything, device) -> tuple[Path | None, TouchAnything | None]:
+def pose_only_model(args: argparse.Namespace, model: TactileModel, device) -> tuple[Path | None, TactileModel | None]:
     """The checkpoint and model of the pose-only rows: none, the evaluated one, or `--pose-only-baseline CHECKPOINT`."""
     if args.pose_only_baseline is None:
         return None, None
     if args.pose_only_baseline is True or args.pose_only_baseline == args.checkpoint:
         return args.checkpoint, model
     return args.pose_only_baseline, load_model(args.pose_only_baseline).to(device)
+
+
+def baseline_models(args: argparse.Namespace, device) -> dict[str, tuple[Path, TactileModel]]:
+    """name → (checkpoint, model) of `--baselines` (none without the flag; the bundled ones when it is given
+    empty), loaded before any evaluation."""
+    if args.baselines is None:
+        return {}
+    checkpoints = {path.parent.name: path for path in args.baselines} if args.baselines else bundled_baselines()
+    if not checkpoints:
+        raise UserError(f"--baselines: no bundled baselines under {MODELS_DIR}; name their checkpoints")
+    return {name: (path, load_model(path).to(device)) for name, path in checkpoints.items()}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -176,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
     check_precision(args.precision, device)
     model = load_model(args.checkpoint, args.config).to(device)
     baseline, baseline_model = pose_only_model(args, model, device)
+    baselines = baseline_models(args, device)
     if group.is_main:
         print(f"eval on {device_label(device)}, {args.precision}, {len(files)} trajectories"
               + (f" over {group.world} processes" if group.world > 1 else ""))
@@ -189,13 +214,16 @@ def run(args: argparse.Namespace) -> int:
         results.append(_evaluate_views(args, model, files, views, group))
         if baseline_model is not None:
             results.append(_evaluate_views(args, baseline_model, files, views, group, blank=True))
+        for name, (_, other) in baselines.items():
+            results.append(dataclasses.replace(_evaluate_views(args, other, files, views, group, name=name), baseline=name))
     if not group.is_main:
         return 0
-    table = markdown(results, args.split, baseline and str(baseline))
+    table = markdown(results, args.split, baseline and str(baseline), {n: str(c) for n, (c, _) in baselines.items()})
     print(table)
     if args.out:
         payload = {"split": args.split, "checkpoint": str(args.checkpoint), "ego_path": args.ego_path,
-                   "pose_only_checkpoint": baseline and str(baseline), "results": [result_record(r, results) for r in results]}
+                   "pose_only_checkpoint": baseline and str(baseline),
+                   "baselines": {n: str(c) for n, (c, _) in baselines.items()}, "results": [result_record(r, results) for r in results]}
         (args.out / "results.json").write_text(json.dumps(payload, indent=1, allow_nan=True) + "\n")
         (args.out / "results.md").write_text(table)
         print(f"results: {args.out / 'results.json'}, {args.out / 'results.md'}")

@@ -7,7 +7,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from touchanything.inference.training.train_config import describe_settings, train_config_from_file
+from touchanything.inference.training.train_config import describe_settings, train_config_from_file, with_epochs
 from touchanything.inference.training.trainer import BEST, LAST, Trainer
 
 
@@ -18,6 +18,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--split-file", type=Path, help="split file (default: DATA/split.json)")
     parser.add_argument("--out", type=Path, help="checkpoint folder (default: checkpoints/<time>_<backbone>_<config>)")
     parser.add_argument("--resume", type=Path, help="continue from a checkpoint of the same run (e.g. OUT/last.pth)")
+    parser.add_argument("--epochs", type=int, metavar="N",
+                        help="train N epochs instead of the config's training.num_epochs (a quick run); a warm-up longer "
+                             "than that is shortened in proportion, with a note")
     parser.add_argument("--blank-images", action="store_true",
                         help="train the pose-only baseline: every frame black (sets data.blank_images: true)")
     parser.set_defaults(run=run)
@@ -25,8 +28,12 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     config = train_config_from_file(args.config)
+    if args.epochs is not None:
+        config, note = with_epochs(config, args.epochs)
+        if note and os.environ.get("RANK", "0") == "0":
+            print(note, flush=True)
     if args.blank_images:
-        config = replace(config, data=replace(config.data, blank_images=True))
+        config = replace(config, model=replace(config.model, blank_images=True))
     run_name = f"{time.strftime('%Y%m%d_%H%M%S')}_{config.model.backbone}_tactile_prediction_{args.config.stem}"
     out = args.out or Path("checkpoints") / run_name
     if os.environ.get("RANK", "0") == "0":

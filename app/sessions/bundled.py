@@ -17,6 +17,17 @@ def bundled_models() -> dict[str, Path]:
     return {p.parent.name: p for p in sorted(found, key=lambda p: p.stat().st_size)}
 
 
+BASELINES = ("baseline_pose", "baseline_frames")
+"""The bundled baselines reported beside the models (docs/findings.md): the single-frame pose MLP (trained on
+black frames) and the small CNN on the frames with that MLP."""
+
+
+def bundled_baselines() -> dict[str, Path]:
+    """name → checkpoint of the bundled baselines that are present."""
+    models = bundled_models()
+    return {name: models[name] for name in BASELINES if name in models}
+
+
 def sample_episodes() -> list[Path]:
     """The bundled sample episodes (raw folders under recordings/sample)."""
     return find_raw_episodes(SAMPLE_DIR) if SAMPLE_DIR.is_dir() else []

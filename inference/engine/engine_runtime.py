@@ -13,12 +13,11 @@ import torch
 
 from touchanything.inference.engine.captured_call import CapturedCalls
 from touchanything.inference.engine.engine_config import EngineConfig, check_runtime
-from touchanything.inference.engine.frame_encoder import FrameEncoder
+from touchanything.inference.engine.model_halves import model_halves
 from touchanything.inference.engine.onnx_runtime import OnnxRuntime, onnx_folder
-from touchanything.inference.engine.window_head import WindowHead
+from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.preprocess import model_input, model_input_on_device
 from touchanything.inference.model.torch_device import autocast
-from touchanything.inference.model.touch_model import TouchAnything
 
 
 class Runtime(Protocol):
@@ -52,7 +51,7 @@ class TorchRuntime:
     CUDA graphs (`CapturedCalls`); on the CPU the frames are prepared with cv2 and the same calls run
     eagerly. `capture` says which."""
 
-    def __init__(self, model: TouchAnything, precision: str = "fp32", device: str = "auto", threads: int | None = None,
+    def __init__(self, model: TactileModel, precision: str = "fp32", device: str = "auto", threads: int | None = None,
                  capture: bool = True) -> None:
         """`threads` sets torch's intra-op thread count, which is process-wide (None: leave it); `capture`
         False runs a GPU eagerly too."""
@@ -61,7 +60,7 @@ class TorchRuntime:
             torch.set_num_threads(threads)
         self.name, self.precision = "torch", precision
         model = model.to(self.device).eval()
-        encoder, window_head = FrameEncoder(model), WindowHead(model)
+        encoder, window_head = model_halves(model)
         self._encode = CapturedCalls(encoder, self._context, capture)
         self._head = CapturedCalls(window_head, self._context, capture)
 
@@ -91,7 +90,7 @@ class TorchRuntime:
         return self._head(torch.stack(frame_tokens), *tensors).float().cpu().numpy()
 
 
-def make_runtime(model: TouchAnything, config: EngineConfig) -> Runtime:
+def make_runtime(model: TactileModel, config: EngineConfig) -> Runtime:
     """The runtime `config` selects for `model` (checked first). ONNX without `onnx_dir` uses the graphs
     cached for this model, exporting them on first use (`onnx_runtime.onnx_folder`)."""
     config.check()

@@ -10,7 +10,7 @@ from torch import nn
 
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.inference.model.touch_model import TouchAnything
-from touchanything.inference.model.vit import PATCH, interpolate_pos_embed
+from touchanything.inference.model.vit import DinoVisionTransformer, interpolate_pos_embed
 
 
 class FrameEncoder(nn.Module):
@@ -43,9 +43,12 @@ class FrameEncoder(nn.Module):
 
 def bake_position_embedding(model: TouchAnything) -> None:
     """Replace the backbone's position table by its interpolation for the model's input size, so the
-    forward pass skips the bicubic resize (used for ONNX export; the outputs do not change)."""
+    forward pass skips the bicubic resize (used for ONNX export; the outputs do not change). A conv backbone
+    has one position table of its own size already."""
     backbone = model.vision_encoder.encoder
-    grid = model.config.image_size // PATCH
+    if not isinstance(backbone, DinoVisionTransformer):
+        return
+    grid = model.config.image_size // model.config.patch_size
     with torch.no_grad():
         baked = interpolate_pos_embed(backbone.pos_embed, grid, grid).clone()
     backbone.pos_embed = nn.Parameter(baked, requires_grad=False)

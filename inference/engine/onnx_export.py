@@ -22,11 +22,11 @@ from pathlib import Path
 import torch
 
 from touchanything.devices.errors import UserError
-from touchanything.inference.engine.frame_encoder import FrameEncoder, bake_position_embedding
-from touchanything.inference.engine.window_head import JOINTS_PER_HAND, WindowHead
+from touchanything.inference.engine.frame_encoder import bake_position_embedding
+from touchanything.inference.engine.model_halves import model_halves
+from touchanything.inference.engine.window_head import JOINTS_PER_HAND
 from touchanything.inference.model.model_config import config_to_dict
-from touchanything.inference.model.touch_model import TouchAnything
-from touchanything.inference.model.vit import PATCH
+from touchanything.inference.model.models import TactileModel
 
 WINDOW = 8
 OPSET = 18
@@ -56,22 +56,22 @@ def _export(module: torch.nn.Module, args: tuple, names: list[str], dynamic: dic
     program.save(str(path))
 
 
-def export_encoder(model: TouchAnything, path: Path) -> None:
+def export_encoder(model: TactileModel, path: Path) -> None:
     size = model.config.image_size
     views = torch.export.Dim("views", min=1, max=3)
     args = (torch.zeros(2, 3, size, size), torch.arange(2))
-    _export(FrameEncoder(model).eval(), args, ["images", "view_ids"],
+    _export(model_halves(model)[0].eval(), args, ["images", "view_ids"],
             {"images": {0: views}, "view_ids": {0: views}}, path)
 
 
-def export_head(model: TouchAnything, path: Path) -> None:
-    tokens = (model.config.image_size // PATCH) ** 2
+def export_head(model: TactileModel, path: Path) -> None:
+    tokens, width = model.frame_token_shape
     outputs, hands = torch.export.Dim("outputs", min=1, max=WINDOW), torch.export.Dim("hands", min=1, max=2)
-    args = (torch.zeros(WINDOW, tokens, model.config.embed_dim), torch.zeros(2, 42, 3), torch.arange(42),
+    args = (torch.zeros(WINDOW, tokens, width), torch.zeros(2, 42, 3), torch.arange(42),
             torch.tensor([WINDOW - 1, 0]))
     dynamic = {"frame_tokens": None, "joints": {0: outputs, 1: JOINTS_PER_HAND * hands},
                "joint_ids": {0: JOINTS_PER_HAND * hands}, "positions": {0: outputs}}
-    _export(WindowHead(model).eval(), args, ["frame_tokens", "joints", "joint_ids", "positions"], dynamic, path)
+    _export(model_halves(model)[1].eval(), args, ["frame_tokens", "joints", "joint_ids", "positions"], dynamic, path)
 
 
 def quantize_int8(source: Path, target: Path) -> None:
@@ -84,7 +84,7 @@ def quantize_int8(source: Path, target: Path) -> None:
         logging.disable(logging.NOTSET)
 
 
-def export_onnx(model: TouchAnything, out_dir: Path, *, int8: bool = False, source: str = "") -> dict:
+def export_onnx(model: TactileModel, out_dir: Path, *, int8: bool = False, source: str = "") -> dict:
     """Write the graphs and `engine.json` into `out_dir`; return the manifest."""
     out_dir = Path(out_dir)
     try:
@@ -101,7 +101,7 @@ def export_onnx(model: TouchAnything, out_dir: Path, *, int8: bool = False, sour
         for part in ("encoder", "head"):
             quantize_int8(out_dir / files["fp32"][part], out_dir / files["int8"][part])
     manifest = {"config": config_to_dict(model.config), "image_size": model.config.image_size,
-                "tokens": (model.config.image_size // PATCH) ** 2, "width": model.config.embed_dim,
+                "tokens": model.frame_token_shape[0], "width": model.frame_token_shape[1],
                 "window": WINDOW, "opset": OPSET, "source": source, "files": files}
     (out_dir / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return manifest

@@ -13,8 +13,8 @@ from touchanything.devices.errors import UserError
 from touchanything.inference.engine.engine_config import check_runtime
 from touchanything.inference.engine.onnx_export import MANIFEST, export_onnx, read_manifest
 from touchanything.inference.model.model_config import config_to_dict
+from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.preprocess import model_input
-from touchanything.inference.model.touch_model import TouchAnything
 
 
 class OnnxRuntime:
@@ -51,7 +51,7 @@ class OnnxRuntime:
         return self._head.run(None, feed)[0]
 
 
-def model_digest(model: TouchAnything) -> str:
+def model_digest(model: TactileModel) -> str:
     """A short hash of the model's weights and config (names the cached ONNX export)."""
     digest = hashlib.sha256(repr(config_to_dict(model.config)).encode())
     for name, tensor in sorted(model.state_dict().items()):
@@ -60,12 +60,12 @@ def model_digest(model: TouchAnything) -> str:
     return digest.hexdigest()[:16]
 
 
-def onnx_cache_dir(model: TouchAnything) -> Path:
+def onnx_cache_dir(model: TactileModel) -> Path:
     root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     return root / "touchanything" / "onnx" / model_digest(model)
 
 
-def onnx_folder(model: TouchAnything, folder: Path | None, precision: str) -> Path:
+def onnx_folder(model: TactileModel, folder: Path | None, precision: str) -> Path:
     """The folder holding graphs for `model` at `precision`: `folder` when given (checked against the model),
     else the user cache, exported there first when missing."""
     if folder is None:

@@ -22,8 +22,9 @@ from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.engine.stitching import StitchAccumulator
 from touchanything.inference.engine.window_head import JOINTS_PER_HAND
 from touchanything.inference.model.model_config import CLIP_LENGTH
+from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.pose_encoder import prepare_poses, usable_hands
-from touchanything.inference.model.touch_model import TouchAnything
+from touchanything.inference.model.preprocess import blank_frames
 
 CENTRE = CLIP_LENGTH // 2
 HAND_NAMES = ("left", "right")
@@ -39,10 +40,11 @@ class StreamingEngine:
     last 6 frames with newest-frame output; stitched: the partial averages of the last 14); `reset()` (or
     a frame index that does not increase) clears the cache."""
 
-    def __init__(self, model: TouchAnything, config: EngineConfig = EngineConfig(), layout: TactileLayout | None = None,
+    def __init__(self, model: TactileModel, config: EngineConfig = EngineConfig(), layout: TactileLayout | None = None,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.config = config.check()
         self.image_size = model.config.image_size
+        self.blank = model.config.blank_images  # a pose-only model sees black frames
         self.runtime: Runtime = make_runtime(model, config)
         self.mask = (layout or TactileLayout.default()).nan_mask()
         self.clock = clock
@@ -93,7 +95,8 @@ class StreamingEngine:
 
     def _encode(self, snapshot: Snapshot, views: tuple[str, ...], timings: dict) -> CachedFrame:
         start = time.perf_counter()
-        images = self.runtime.prepare([snapshot.images[v] for v in views], self.image_size)
+        frames = [blank_frames((self.image_size, self.image_size, 3)) if self.blank else snapshot.images[v] for v in views]
+        images = self.runtime.prepare(frames, self.image_size)
         view_ids = np.array([VIEW_NAMES.index(v) for v in views], np.int64)
         timings["preprocess"] = _ms(start)
         start = time.perf_counter()

@@ -43,11 +43,8 @@ class WindowHead(nn.Module):
         self.decoder = model.decoder
 
     def encode_poses(self, joints: torch.Tensor, joint_ids: torch.Tensor) -> torch.Tensor:
-        """(P, J, 3) → (P, J, D): the official pose encoder on the selected joints."""
-        encoder = self.pose_encoder
-        x = (joints - encoder.pose_offset) / encoder.pose_scale
-        x = encoder.joint_embed(x) + encoder.joint_pos_embed[:, joint_ids]
-        return encoder.norm(encoder.transformer(x))
+        """(P, J, 3) → (P, J, D): the pose encoder on the selected joints."""
+        return self.pose_encoder.encode(joints, joint_ids)
 
     def visual_at(self, frame_tokens: torch.Tensor, positions: torch.Tensor) -> torch.Tensor:
         """(T, N, D) → (P, N, D) temporal-transformer output at the output positions."""

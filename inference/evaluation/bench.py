@@ -32,10 +32,10 @@ from touchanything.inference.evaluation.evaluation import trajectory_metrics
 from touchanything.inference.evaluation.metrics import aggregate
 from touchanything.inference.evaluation.vision_share import vision_shares
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
+from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.pose_encoder import prepare_poses
 from touchanything.inference.model.preprocess import blank_images, resize_frame, to_model_input
 from touchanything.inference.model.torch_device import device_label
-from touchanything.inference.model.touch_model import TouchAnything
 
 LOOKAHEAD_FRAMES = {"newest": 0, "centre": 6, "stitched": 14}
 
@@ -138,7 +138,7 @@ def interleaved_latency(engines: dict[BenchSetting, StreamingEngine], clip: list
 
 
 @torch.inference_mode()
-def naive_latency(model: TouchAnything, clip: list[Snapshot], steps: int, warmup: int = 1) -> np.ndarray:
+def naive_latency(model: TactileModel, clip: list[Snapshot], steps: int, warmup: int = 1) -> np.ndarray:
     """Per-frame ms of recomputing the whole clip (all views, batch forward) for every new frame; each frame
     is preprocessed once and kept, as a sensible non-caching implementation would."""
     size, history, times = model.config.image_size, deque(maxlen=SPAN), []
@@ -221,7 +221,7 @@ def measured_accuracy(settings: list[BenchSetting], engines: dict[BenchSetting, 
     return accuracy
 
 
-def bench_model(name: str, model: TouchAnything, episodes: list[BenchEpisode] | None, clip: list[Snapshot],
+def bench_model(name: str, model: TactileModel, episodes: list[BenchEpisode] | None, clip: list[Snapshot],
                 plan: BenchPlan, progress=print) -> tuple[list[dict], dict]:
     """Rows for one model's settings (latency only, torch fp32 all views, without episodes; accuracy only for a
     pose-only baseline) and its naive comparison {naive_p50_ms, streaming_p50_ms, ratio}."""

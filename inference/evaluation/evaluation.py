@@ -25,8 +25,8 @@ from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.metrics import MetricAccumulator, aggregate, ground_truth_for_metrics
 from touchanything.inference.evaluation.trajectory_prediction import TrajectoryPrediction, predict_trajectory
 from touchanything.inference.evaluation.vision_share import vision_shares
+from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.torch_device import ProcessGroup
-from touchanything.inference.model.touch_model import TouchAnything
 
 VIEW_SETS = {"ego": ("ego",), "ego+left": ("ego", "wrist_left"), "ego+right": ("ego", "wrist_right"), "all": VIEW_NAMES}
 
@@ -43,14 +43,18 @@ def trajectory_metrics(prediction: np.ndarray, gt: np.ndarray, bend: np.ndarray)
 @dataclass
 class EvaluationResult:
     """rows: one dict per trajectory (path, scene, task, frames, stitched/causal metrics); blank: the
-    pose-only baseline (images blanked)."""
+    pose-only twin (images blanked); baseline: the name of a baseline model evaluated beside the model ("" for
+    the model itself)."""
 
     views: str
     rows: list[dict]
     blank: bool = False
+    baseline: str = ""
 
     @property
     def label(self) -> str:
+        if self.baseline:
+            return f"{self.views} · {self.baseline}"
         return f"{self.views} (pose only)" if self.blank else self.views
 
     def summary(self, mode: str) -> dict[str, dict[str, float]]:
@@ -68,12 +72,13 @@ def vision_share_summary(real: EvaluationResult, blank: EvaluationResult, mode: 
     return {scene: vision_shares(metrics, baseline[scene]) for scene, metrics in real.summary(mode).items()}
 
 
-def evaluate(model: TouchAnything, files: list[Path], views: str, batch_size: int = 16, ego_path: str = "frames",
+def evaluate(model: TactileModel, files: list[Path], views: str, batch_size: int = 16, ego_path: str = "frames",
              precision: str = "fp32", group: ProcessGroup = ProcessGroup(),
              on_trajectory: Callable[[dict, Episode, TrajectoryPrediction, np.ndarray], None] | None = None,
              on_frames: Callable[[int], None] | None = None, blank: bool = False) -> EvaluationResult:
     """The official protocol over HDF5 (or raw) trajectories for one view configuration, on the model's device
-    (`blank`: with every frame of those views black, the pose-only baseline).
+    (`blank`, or a model trained on black frames (`config.blank_images`): with every frame of those views
+    black, the pose-only baseline).
 
     Under `torchrun` (group.world > 1) process r evaluates files r, r + world, …; every process returns all
     rows, in `files` order, so the result equals one process's. `on_trajectory(row, episode, prediction, gt)`
@@ -89,7 +94,7 @@ def evaluate(model: TouchAnything, files: list[Path], views: str, batch_size: in
             if episode.pressure is None:
                 raise UserError(f"{path}: no ground-truth pressure; cannot evaluate")
             prediction = predict_trajectory(model, episode, VIEW_SETS[views], batch_size, ego_path, precision, on_frames,
-                                            blank)
+                                            blank or model.config.blank_images)
             gt = ground_truth_for_metrics(episode.pressure.grids, bool(episode.pressure.attrs.get("normalized", False)))
             row = {"path": str(path), "scene": episode.scene, "task": episode.task, "frames": episode.num_frames,
                    "stitched": trajectory_metrics(prediction.stitched, gt, bend),

@@ -18,6 +18,7 @@ import torch
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.errors import UserError
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN, TACTILE_SIZE
+from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.pose_encoder import prepare_poses
 from touchanything.inference.model.preprocess import blank_frames, resize_frame, to_model_input
 from touchanything.inference.model.torch_device import autocast
@@ -40,13 +41,13 @@ class FrameFeatures:
     `upto(end)` encodes frames up to `end` (exclusive) that are not encoded yet; `drop_before(first)` frees
     older ones; `clips(starts)` gathers (B, 8, N, D) for clip starts."""
 
-    def __init__(self, model: TouchAnything, episode: Episode, views: tuple[str, ...], ego_path: str,
+    def __init__(self, model: TactileModel, episode: Episode, views: tuple[str, ...], ego_path: str,
                  batch_size: int, precision: str, blank: bool = False) -> None:
         missing = next((v for v in views if v not in episode.views), None)
         if missing:
             raise UserError(f"{episode.path}: view {missing} is missing; evaluate with fewer views")
         self.model, self.episode, self.views, self.blank = model, episode, views, blank
-        self.official_frames = views == ("ego",) and ego_path == "frames"
+        self.official_frames = views == ("ego",) and ego_path == "frames" and isinstance(model, TouchAnything)
         self.batch_size, self.precision = batch_size, precision
         self.device = next(model.parameters()).device
         self.first = self.end = 0
@@ -76,7 +77,7 @@ class FrameFeatures:
             if self.official_frames:
                 visual = self.model.vision_encoder(inputs["ego"])
             else:
-                visual = self.model.multi_view_encoder(inputs)
+                visual = self.model.encode_frames(inputs)
         return visual[0].float()
 
     def upto(self, end: int) -> int:
@@ -100,7 +101,7 @@ class FrameFeatures:
 
 
 @torch.no_grad()
-def predict_trajectory(model: TouchAnything, episode: Episode, views: tuple[str, ...], batch_size: int = 16,
+def predict_trajectory(model: TactileModel, episode: Episode, views: tuple[str, ...], batch_size: int = 16,
                        ego_path: str = "frames", precision: str = "fp32",
                        on_frames: Callable[[int], None] | None = None, blank: bool = False) -> TrajectoryPrediction:
     """Stitched (average of the clips covering a frame) and causal (last frame of the clip ending on it)

@@ -12,7 +12,7 @@ import yaml
 from touchanything.devices.errors import UserError
 from touchanything.inference.model.config_files import read_config_file
 from touchanything.inference.model.model_config import ModelConfig, config_from_dict, write_config
-from touchanything.inference.model.touch_model import TouchAnything
+from touchanything.inference.model.models import TactileModel, create_model
 from touchanything.inference.model.vit import load_dinov2_weights
 
 CONFIG_FILE = "config.yaml"
@@ -38,20 +38,22 @@ def read_checkpoint(path: Path) -> dict:
 
 def model_state(checkpoint: dict, path: Path) -> dict[str, torch.Tensor]:
     """The state dict inside a checkpoint (`model_state_dict`, `state_dict` or the dict itself), with
-    `module.` prefixes stripped and a backbone present under one official prefix copied to the other."""
+    `module.` prefixes stripped."""
     state = checkpoint.get("model_state_dict", checkpoint.get("state_dict", checkpoint))
     if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):
         raise UserError(f"{path}: no model state dict found (expected key 'model_state_dict')")
-    state = {k.removeprefix("module."): v for k, v in state.items()}
-    for have, want in (BACKBONE_PREFIXES, BACKBONE_PREFIXES[::-1]):
-        if not any(k.startswith(want) for k in state):
-            state.update({want + k[len(have):]: v for k, v in list(state.items()) if k.startswith(have)})
-    return state
+    return {k.removeprefix("module."): v for k, v in state.items()}
 
 
-def load_state(model: TouchAnything, state: dict[str, torch.Tensor], path: Path) -> None:
-    """Strict load; mismatches are reported by name (a checkpoint for another preset is named as such)."""
+def load_state(model: TactileModel, state: dict[str, torch.Tensor], path: Path) -> None:
+    """Strict load; mismatches are reported by name (a checkpoint for another preset is named as such). A
+    TouchAnything backbone present under one official prefix only is copied to the other (the official model
+    holds it twice)."""
     expected = model.state_dict()
+    state = dict(state)
+    for have, want in (BACKBONE_PREFIXES, BACKBONE_PREFIXES[::-1]):
+        if any(k.startswith(want) for k in expected) and not any(k.startswith(want) for k in state):
+            state.update({want + k[len(have):]: v for k, v in list(state.items()) if k.startswith(have)})
     missing = sorted(set(expected) - set(state))
     unexpected = sorted(set(state) - set(expected))
     wrong = [(k, tuple(state[k].shape), tuple(v.shape)) for k, v in expected.items() if k in state and state[k].shape != v.shape]
@@ -78,7 +80,7 @@ def find_config(checkpoint_path: Path, config_path: Path | None) -> Path:
     return beside
 
 
-def load_model(checkpoint_path: Path, config_path: Path | None = None) -> TouchAnything:
+def load_model(checkpoint_path: Path, config_path: Path | None = None) -> TactileModel:
     """Load an official or project checkpoint with its `config.yaml` (official structure, `_base_` merged)
     → model in eval mode.
 
@@ -86,22 +88,22 @@ def load_model(checkpoint_path: Path, config_path: Path | None = None) -> TouchA
     """
     checkpoint = read_checkpoint(checkpoint_path)
     config = config_from_dict(read_config_file(find_config(checkpoint_path, config_path)), str(config_path or checkpoint_path))
-    model = TouchAnything(config)
+    model = create_model(config)
     load_state(model, model_state(checkpoint, Path(checkpoint_path)), Path(checkpoint_path))
     return model.eval()
 
 
-def build_model(config: ModelConfig, pretrained: bool = True) -> TouchAnything:
+def build_model(config: ModelConfig, pretrained: bool = True) -> TactileModel:
     """A new model; with `pretrained` and a `pretrained_path` in the config, DINOv2 weights are loaded
     from that local file (a missing file is an error, never a silent random backbone)."""
-    model = TouchAnything(config)
+    model = create_model(config)
     weights = config.vision_encoder.pretrained_path
     if pretrained and weights:
         load_dinov2_weights(model.vision_encoder.encoder, Path(weights))
     return model
 
 
-def save_checkpoint(path: Path, model: TouchAnything, *, epoch: int = 0, optimizer=None, scheduler=None,
+def save_checkpoint(path: Path, model: TactileModel, *, epoch: int = 0, optimizer=None, scheduler=None,
                     loss: float | None = None, metrics: dict | None = None, half: bool = False,
                     config: dict | None = None) -> None:
     """Official dict format plus `config.yaml` beside (`config`, or the model's own section); `half`

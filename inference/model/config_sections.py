@@ -2,7 +2,8 @@
 
 A section class names its keys exactly as the official YAML does. Its fields are the keys this project
 reads (typed; `limits(...)` in a field's metadata gives the allowed range; a nested dataclass is a nested
-section). Class attributes say what else the official structure may carry there:
+section; `Section | None` with `omit_none` in its metadata is an optional section: absent or null gives None,
+which is not written back). Class attributes say what else the official structure may carry there:
 - `FIXED`: keys with the one value this model supports (e.g. `type: transformer`): any other value is an error;
 - `DERIVED`: keys whose value follows from the fields (e.g. `embed_dim` from the backbone): checked, written;
 - `UNUSED`: official keys that do not shape this project's model or run (accepted, reported as unused);
@@ -67,8 +68,9 @@ class SectionReader:
         return section
 
     def _value(self, kind, value: Any, name: str, metadata) -> Any:
-        if is_dataclass(kind):
-            return self.read(kind, value, name)
+        section = _section_type(kind)
+        if section is not None:
+            return None if value is None and section is not kind else self.read(section, value, name)
         converted = self._convert(kind, value, name)
         check_limits(converted, metadata, lambda problem: self.error(name, problem))
         return converted
@@ -93,6 +95,15 @@ class SectionReader:
     def _check_fixed(self, value: Any, expected: Any, name: str) -> None:
         if value != expected:
             raise self.error(name, f"{value!r} is not supported; this model supports only {expected!r}")
+
+
+def _section_type(kind) -> type | None:
+    """The dataclass of a nested section field (`Section` or an optional `Section | None`), else None."""
+    if is_dataclass(kind):
+        return kind
+    if isinstance(kind, types.UnionType) or typing.get_origin(kind) is typing.Union:
+        return next((k for k in typing.get_args(kind) if is_dataclass(k)), None)
+    return None
 
 
 def _float_text(text: str) -> float | str:
@@ -122,6 +133,8 @@ def check_section(section, where: str, source: str = "config") -> None:
         if f.metadata.get("not_in_section"):
             continue
         value, name = getattr(section, f.name), f"{where}.{f.name}"
+        if value is None:
+            continue
         if is_dataclass(value):
             check_section(value, name, source)
         else:
@@ -132,9 +145,9 @@ def section_to_dict(section) -> dict:
     """The section in the official structure: fixed keys, then the fields, then derived keys."""
     out = dict(getattr(section, "FIXED", {}))
     for f in fields(section):
-        if f.metadata.get("not_in_section"):
-            continue
         value = getattr(section, f.name)
+        if f.metadata.get("not_in_section") or (value is None and f.metadata.get("omit_none")):
+            continue
         out[f.name] = section_to_dict(value) if is_dataclass(value) else list(value) if isinstance(value, tuple) else value
     out.update({key: derive(section) for key, derive in getattr(section, "DERIVED", {}).items()})
     return out

@@ -17,6 +17,7 @@ import yaml
 
 from touchanything.devices.errors import UserError, describe
 from touchanything.inference.model.config_sections import SectionReader, check_section, limits, section_to_dict
+from touchanything.inference.model.conv_backbone import CONV_BACKBONES
 from touchanything.inference.model.vit import BACKBONES, PATCH
 
 CLIP_LENGTH, FRAME_INTERVAL, TACTILE_SIZE, NUM_JOINTS = 8, 2, 21, 42
@@ -25,10 +26,22 @@ IMAGENET_MEAN, IMAGENET_STD = [0.485, 0.456, 0.406], [0.229, 0.224, 0.225]
 LAYERS, HEADS, RATIO, DROPOUT = limits(1), limits(1), limits(0.0, None), limits(0.0, 1.0, high_open=True)
 
 
+VISION_TYPES = {"dinov2": BACKBONES, "conv": CONV_BACKBONES}
+"""`model.vision_encoder.type`: `dinov2` (the official ViT backbones) or `conv` (a project extension: the small
+convolutional backbones of `conv_backbone`, trained from scratch, for the CPU presets)."""
+
+
+def _backbone_spec(section):
+    return VISION_TYPES.get(section.type, {}).get(section.model_name)
+
+
 @dataclass(frozen=True)
 class VisionEncoderConfig:
-    FIXED: ClassVar = {"type": "dinov2", "patch_size": PATCH}
-    DERIVED: ClassVar = {"embed_dim": lambda s: BACKBONES[s.model_name].width if s.model_name in BACKBONES else None}
+    DERIVED: ClassVar = {
+        "patch_size": lambda s: PATCH if s.type == "dinov2" else (_backbone_spec(s).stride if _backbone_spec(s) else None),
+        "embed_dim": lambda s: _backbone_spec(s).width if _backbone_spec(s) else None,
+    }
+    type: str = "dinov2"
     model_name: str = "dinov2_vitb14"
     pretrained_path: str | None = None
     freeze: bool = True
@@ -54,13 +67,21 @@ class MultiViewConfig:
     view_dropout_prob: float = field(default=0.3, metadata=limits(0.0, 1.0))
 
 
+POSE_INPUTS = ("camera", "hand")
+"""`model.pose_encoder.input`: `camera` is the official pose input, `hand` a project extension
+(`pose_encoder.TransformerPoseEncoder`)."""
+
+
 @dataclass(frozen=True)
 class PoseEncoderConfig:
+    """`input` is a project extension (`pose_encoder.POSE_INPUTS`); `camera` is the official pose input."""
+
     FIXED: ClassVar = {"type": "transformer", "num_joints": NUM_JOINTS, "output_mode": "per_joint"}
     num_layers: int = field(default=2, metadata=LAYERS)
     num_heads: int = field(default=8, metadata=HEADS)
     mlp_ratio: float = field(default=4.0, metadata=RATIO)
     dropout: float = field(default=0.1, metadata=DROPOUT)
+    input: str = "camera"
 
 
 @dataclass(frozen=True)
@@ -72,25 +93,45 @@ class FusionConfig:
     dropout: float = field(default=0.1, metadata=DROPOUT)
 
 
+DECODER_TYPES = ("joint_level", "mlp")
+
+
 @dataclass(frozen=True)
 class TactileDecoderConfig:
-    FIXED: ClassVar = {"type": "joint_level", "num_joints": NUM_JOINTS, "tactile_size": TACTILE_SIZE}
+    """`type`: `joint_level` (official) or `mlp` (a project extension, `tactile_decoder.MlpTactileDecoder`)."""
+
+    FIXED: ClassVar = {"num_joints": NUM_JOINTS, "tactile_size": TACTILE_SIZE}
+    type: str = "joint_level"
     conv_channels: int = field(default=128, metadata=limits(1))
     dropout: float = field(default=0.1, metadata=DROPOUT)
 
 
 @dataclass(frozen=True)
+class BaselineConfig:
+    """`model.baseline` (a project extension): present, the model is the single-frame baseline
+    (`single_frame_baseline`) — the backbone of `vision_encoder` pooled per view, and an MLP of `layers` ×
+    `hidden` units per hand; of the other sections only `multi_view.view_dropout_prob` applies."""
+
+    hidden: int = field(default=512, metadata=limits(1))
+    layers: int = field(default=2, metadata=limits(1))
+    dropout: float = field(default=0.1, metadata=DROPOUT)
+
+
+@dataclass(frozen=True)
 class ModelInputConfig:
-    """The part of the `data` section the model's input depends on."""
+    """The part of the `data` section the model's input depends on. `blank_images` (a project extension): the
+    model was trained, and is run, with every frame black (`preprocess.blank_frames`) — a pose-only model."""
 
     FIXED: ClassVar = {"normalize_mean": IMAGENET_MEAN, "normalize_std": IMAGENET_STD, "clip_length": CLIP_LENGTH,
                        "frame_interval": FRAME_INTERVAL, "tactile_size": TACTILE_SIZE}
-    image_size: tuple[int, int] = field(default=(224, 224), metadata=limits(PATCH))
+    image_size: tuple[int, int] = field(default=(224, 224), metadata=limits(1))
+    blank_images: bool = False
 
 
 @dataclass(frozen=True)
 class ModelConfig:
-    """The `model` section (official names) plus the square input size from `data.image_size`."""
+    """The `model` section (official names) plus the square input size `data.image_size` and
+    `data.blank_images`."""
 
     FIXED: ClassVar = {"task": "tactile_prediction", "num_input_joints": NUM_JOINTS}
     UNUSED: ClassVar = ("name", "pose_decoder")
@@ -100,7 +141,9 @@ class ModelConfig:
     pose_encoder: PoseEncoderConfig = PoseEncoderConfig()
     fusion: FusionConfig = FusionConfig()
     tactile_decoder: TactileDecoderConfig = TactileDecoderConfig()
+    baseline: BaselineConfig | None = field(default=None, metadata={"omit_none": True})
     image_size: int = field(default=224, metadata={"not_in_section": True})
+    blank_images: bool = field(default=False, metadata={"not_in_section": True})
 
     @property
     def backbone(self) -> str:
@@ -108,22 +151,43 @@ class ModelConfig:
 
     @property
     def embed_dim(self) -> int:
-        return BACKBONES[self.backbone].width
+        return _backbone_spec(self.vision_encoder).width
+
+    @property
+    def patch_size(self) -> int:
+        """The backbone's output stride: one visual token per `patch_size`² pixels."""
+        return VisionEncoderConfig.DERIVED["patch_size"](self.vision_encoder)
 
     @property
     def patches(self) -> int:
-        return (self.image_size // PATCH) ** 2
+        """Visual tokens per frame."""
+        return (self.image_size // self.patch_size) ** 2
 
     def check(self, source: str = "config") -> ModelConfig:
         """One line naming the key for an impossible configuration."""
         def fail(key: str, problem: str) -> UserError:
             return UserError(describe(source, key, problem))
 
-        if self.backbone not in BACKBONES:
-            raise fail("model.vision_encoder.model_name", f"unknown backbone {self.backbone!r}; choose from {', '.join(BACKBONES)}")
+        encoder = self.vision_encoder
+        if encoder.type not in VISION_TYPES:
+            raise fail("model.vision_encoder.type", f"{encoder.type!r} is not supported; choose from {', '.join(VISION_TYPES)}")
+        if _backbone_spec(encoder) is None:
+            names = ", ".join(VISION_TYPES[encoder.type])
+            raise fail("model.vision_encoder.model_name",
+                       f"unknown backbone {self.backbone!r} for type {encoder.type}; choose from {names}")
+        if encoder.type == "conv" and encoder.pretrained_path:
+            raise fail("model.vision_encoder.pretrained_path", "a conv backbone is trained from scratch; no pretrained weights exist")
+        if encoder.type == "conv" and encoder.freeze:
+            raise fail("model.vision_encoder.freeze", "a conv backbone is trained from scratch; set freeze: false")
+        if self.tactile_decoder.type not in DECODER_TYPES:
+            raise fail("model.tactile_decoder.type",
+                       f"{self.tactile_decoder.type!r} is not supported; choose from {', '.join(DECODER_TYPES)}")
+        if self.pose_encoder.input not in POSE_INPUTS:
+            raise fail("model.pose_encoder.input", f"{self.pose_encoder.input!r} is not supported; choose from {', '.join(POSE_INPUTS)}")
         check_section(self, "model", source)
-        if self.image_size < PATCH or self.image_size % PATCH:
-            raise fail("data.image_size", f"{self.image_size} is not a positive multiple of the patch size {PATCH}")
+        patch = self.patch_size
+        if self.image_size < patch or self.image_size % patch:
+            raise fail("data.image_size", f"{self.image_size} is not a positive multiple of the patch size {patch}")
         for section in ("temporal_transformer", "multi_view", "pose_encoder", "fusion"):
             heads = getattr(self, section).num_heads
             if self.embed_dim % heads:
@@ -171,7 +235,7 @@ def read_model_config(data: dict, reader: SectionReader) -> ModelConfig:
     height, width = inputs.image_size
     if height != width:
         raise reader.error("data.image_size", f"must be square, got {list(inputs.image_size)}")
-    return replace(model, image_size=height).check(reader.source)
+    return replace(model, image_size=height, blank_images=inputs.blank_images).check(reader.source)
 
 
 def config_from_dict(data: dict, source: str = "config") -> ModelConfig:
@@ -181,7 +245,8 @@ def config_from_dict(data: dict, source: str = "config") -> ModelConfig:
 
 def config_to_dict(config: ModelConfig) -> dict:
     """The official structure: the `model` section and the `data` keys the model's input depends on."""
-    inputs = section_to_dict(ModelInputConfig(image_size=(config.image_size, config.image_size)))
+    inputs = section_to_dict(ModelInputConfig(image_size=(config.image_size, config.image_size),
+                                              blank_images=config.blank_images))
     return {"model": section_to_dict(config), "data": inputs}
 
 

@@ -38,3 +38,26 @@ class JointLevelTactileDecoder(nn.Module):
         x = self.joint_proj(fused.reshape(b * t, j, d))
         out = torch.cat([self.hand(x[:, :21]), self.hand(x[:, 21:])], dim=1)
         return out.reshape(b, t, 2, *out.shape[-2:])
+
+
+class MlpTactileDecoder(nn.Module):
+    """A project extension (`tactile_decoder.type: mlp`) with the joint-level decoder's interface: the same
+    per-joint projection to C channels, then per hand the 21 joints' features flattened → Linear(21·C, 8·C) →
+    GELU → Linear → 441 cells → sigmoid. No spatial prior and no BatchNorm."""
+
+    def __init__(self, width: int, channels: int, dropout: float, size: int = 21) -> None:
+        super().__init__()
+        self.channels, self.size = channels, size
+        self.joint_proj = nn.Sequential(nn.Linear(width, channels), nn.GELU(), nn.Dropout(dropout))
+        self.cells = nn.Sequential(nn.Linear(21 * channels, 8 * channels), nn.GELU(), nn.Dropout(dropout),
+                                   nn.Linear(8 * channels, size * size), nn.Sigmoid())
+
+    def hand(self, feats: torch.Tensor) -> torch.Tensor:
+        """(BT, 21, C) one hand's joint features → (BT, 1, 21, 21)."""
+        return self.cells(feats.flatten(1)).reshape(-1, 1, self.size, self.size)
+
+    def forward(self, fused: torch.Tensor) -> torch.Tensor:
+        b, t, j, d = fused.shape
+        x = self.joint_proj(fused.reshape(b * t, j, d))
+        out = torch.cat([self.hand(x[:, :21]), self.hand(x[:, 21:])], dim=1)
+        return out.reshape(b, t, 2, *out.shape[-2:])

@@ -15,10 +15,9 @@ from touchanything.inference.model.fusion import CrossAttentionFusion
 from touchanything.inference.model.model_config import NUM_JOINTS, TACTILE_SIZE, ModelConfig
 from touchanything.inference.model.multi_view import MultiViewEncoder
 from touchanything.inference.model.pose_encoder import TransformerPoseEncoder
-from touchanything.inference.model.tactile_decoder import JointLevelTactileDecoder
+from touchanything.inference.model.tactile_decoder import JointLevelTactileDecoder, MlpTactileDecoder
 from touchanything.inference.model.temporal import TemporalTransformer
-from touchanything.inference.model.vision_encoder import VisionEncoder
-from touchanything.inference.model.vit import BACKBONES, DinoVisionTransformer
+from touchanything.inference.model.vision_encoder import VisionEncoder, backbone
 
 
 class TouchAnything(nn.Module):
@@ -27,14 +26,16 @@ class TouchAnything(nn.Module):
         c = config.check()
         self.config = c
         width, mv, tt, pe, fu = c.embed_dim, c.multi_view, c.temporal_transformer, c.pose_encoder, c.fusion
-        self.vision_encoder = VisionEncoder(DinoVisionTransformer(BACKBONES[c.backbone]), c.vision_encoder.freeze)
+        self.vision_encoder = VisionEncoder(backbone(c), c.vision_encoder.freeze)
         self.multi_view_encoder = MultiViewEncoder(self.vision_encoder, width, mv.num_heads, mv.num_cross_layers,
                                                    mv.mlp_ratio, mv.dropout, mv.view_dropout_prob)
         self.temporal_transformer = TemporalTransformer(width, tt.num_layers, tt.num_heads, tt.mlp_ratio, tt.dropout,
                                                         tt.window_size)
-        self.pose_encoder = TransformerPoseEncoder(width, pe.num_layers, pe.num_heads, pe.mlp_ratio, pe.dropout, NUM_JOINTS)
+        self.pose_encoder = TransformerPoseEncoder(width, pe.num_layers, pe.num_heads, pe.mlp_ratio, pe.dropout, NUM_JOINTS,
+                                                   pe.input)
         self.fusion = CrossAttentionFusion(width, fu.num_layers, fu.num_heads, fu.mlp_ratio, fu.dropout)
-        self.decoder = JointLevelTactileDecoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE)
+        decoder = MlpTactileDecoder if c.tactile_decoder.type == "mlp" else JointLevelTactileDecoder
+        self.decoder = decoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE)
 
     def forward(self, frames: torch.Tensor | None = None, poses: torch.Tensor | None = None,
                 views: dict[str, torch.Tensor] | None = None,
@@ -52,6 +53,24 @@ class TouchAnything(nn.Module):
         else:
             raise ValueError("give views={...}, tokens={...} or frames=")
         return {"tactile": self.head(visual, poses)}
+
+    @property
+    def frame_token_shape(self) -> tuple[int, int]:
+        """(N, D) of the per-frame half's output: one token per backbone patch."""
+        return self.config.patches, self.config.embed_dim
+
+    @property
+    def last_kept(self) -> tuple[str, ...]:
+        """The views the last training forward pass used (after view dropout)."""
+        return self.multi_view_encoder.last_kept
+
+    def encode_frames(self, views: dict[str, torch.Tensor]) -> torch.Tensor:
+        """{view: (B, T, 3, S, S)} → (B, T, N, D) fused visual tokens (the per-frame half)."""
+        return self.multi_view_encoder(views)
+
+    def set_pose_statistics(self, poses) -> int:
+        """The `hand` pose input's standardisation from prepared training poses (N, 42, 3); 0 for `camera`."""
+        return self.pose_encoder.set_statistics(poses)
 
     def head(self, visual: torch.Tensor, poses: torch.Tensor) -> torch.Tensor:
         """Fused visual tokens (B, T, N, D) and prepared poses (B, T, 42, 3) → (B, T, 2, 21, 21)."""

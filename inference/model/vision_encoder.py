@@ -1,10 +1,20 @@
-"""VisionEncoder: the DINOv2 backbone applied frame by frame, returning normalised patch tokens."""
+"""VisionEncoder: the backbone (DINOv2 ViT, or the conv extension) applied frame by frame, returning normalised
+patch tokens."""
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-from touchanything.inference.model.vit import DinoVisionTransformer
+from touchanything.inference.model.conv_backbone import CONV_BACKBONES, ConvBackbone
+from touchanything.inference.model.model_config import ModelConfig
+from touchanything.inference.model.vit import BACKBONES, DinoVisionTransformer
+
+
+def backbone(config: ModelConfig) -> DinoVisionTransformer | ConvBackbone:
+    """The configured per-frame backbone: an official DINOv2 ViT, or a conv backbone (project extension)."""
+    if config.vision_encoder.type == "conv":
+        return ConvBackbone(CONV_BACKBONES[config.backbone], config.image_size)
+    return DinoVisionTransformer(BACKBONES[config.backbone])
 
 
 class VisionEncoder(nn.Module):
@@ -13,7 +23,7 @@ class VisionEncoder(nn.Module):
     A frozen backbone runs without gradients and stays in eval mode even when the model trains.
     """
 
-    def __init__(self, encoder: DinoVisionTransformer, freeze: bool) -> None:
+    def __init__(self, encoder: DinoVisionTransformer | ConvBackbone, freeze: bool) -> None:
         super().__init__()
         self.encoder = encoder
         self.freeze = freeze

@@ -1,11 +1,12 @@
 """Training clips: the official sampler (T = 8 frames at interval 2, non-overlapping starts 0, 15, 30, …),
 pose rules and target preparation over HDF5 trajectories, and the DataLoader that feeds them.
 
-Poses and pressure (small) are read once when the dataset is built; frames are decoded and resized per clip,
-inside the DataLoader's worker processes when there are any (`blank`: none is decoded; every view shows black
-frames, the pose-only baseline). A worker opens each trajectory's file on first use and closes it when the
-worker exits; the main process opens a file per clip and closes it at once, so no HDF5 handle is ever open in
-a process that forks workers.
+Poses and pressure (small) are read once when the dataset is built. Frames come from a `FrameCache` (decoded
+and resized once, memory-mapped) when one is given, else they are decoded and resized per clip, inside the
+DataLoader's worker processes when there are any (`blank`: none is decoded; every view shows black frames,
+the pose-only baseline). Without a cache a worker opens each trajectory's file on first use and closes it when
+the worker exits; the main process opens a file per clip and closes it at once, so no HDF5 handle is ever open
+in a process that forks workers.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from touchanything.devices.errors import UserError
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from touchanything.inference.model.pose_encoder import prepare_poses
 from touchanything.inference.model.preprocess import blank_frames, resize_frame, to_model_input
+from touchanything.inference.training.frame_cache import FrameCache
 
 
 def clip_starts(frames: int, span: int) -> list[int]:
@@ -92,8 +94,16 @@ class ClipDataset(Dataset):
     only on the index (no random numbers are drawn), so any number of workers yields the same batches."""
 
     def __init__(self, files: list[Path], size: int, pose_source: str = "wilor", fallback: str | None = None,
-                 blank: bool = False) -> None:
-        self.episodes = [load_episode(f, pose_source, fallback) for f in files]
+                 blank: bool = False, cache: FrameCache | None = None, on_episode=None) -> None:
+        """`cache`: frames from it (entries built here, before any worker starts); `on_episode()` is called
+        after each trajectory is ready (a progress bar)."""
+        self.episodes = []
+        self.cache = None if blank else cache
+        for f in files:
+            self.episodes.append(load_episode(f, pose_source, fallback))
+            if self.cache is not None:
+                self.cache.entry(f, self.episodes[-1].views)
+            on_episode and on_episode()
         self.size, self.blank = size, blank
         self.offsets = np.arange(CLIP_LENGTH) * FRAME_INTERVAL
         self.items = [(e, s) for e, ep in enumerate(self.episodes) for s in clip_starts(len(ep.poses), SPAN)]
@@ -115,11 +125,16 @@ class ClipDataset(Dataset):
         }
 
     def _views(self, e: int, frames: np.ndarray) -> dict[str, torch.Tensor]:
-        """Decoded, resized and normalised frames of every view: through this worker's open file, or
-        (in the main process) a file opened for this clip only. Blank: black frames, nothing read."""
+        """Resized and normalised frames of every view: from the frame cache, else decoded through this
+        worker's open file or (in the main process) a file opened for this clip only. Blank: black frames,
+        nothing read."""
         if self.blank:
             black = to_model_input(blank_frames((len(frames), self.size, self.size, 3)))
             return dict.fromkeys(self.episodes[e].views, black)
+        if self.cache is not None:
+            episode = self.episodes[e]
+            clip = self.cache.frames(episode.path, episode.views)[frames]
+            return {view: to_model_input(clip[:, v]) for v, view in enumerate(episode.views)}
         if get_worker_info() is not None:
             return self._read(self._worker_file(e), e, frames)
         with h5py.File(self.episodes[e].path, "r") as file:

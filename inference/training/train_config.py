@@ -11,7 +11,7 @@ the official structure: `data.blank_images` (default false), which trains the po
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import ClassVar
 
@@ -74,16 +74,15 @@ class SystemConfig:
 
 @dataclass(frozen=True)
 class TrainingDataConfig:
-    """The training part of `data`; the model's input keys are read by `ModelInputConfig`. `blank_images` (a
-    project extension): every frame of every view black (`preprocess.blank_frames`), the pose-only baseline."""
+    """The training part of `data`; the model's input keys (`image_size`, `blank_images`) are read by
+    `ModelInputConfig`."""
 
     FIXED: ClassVar = {"use_augmentation": False, "random_crop": False, "random_flip": False}
     UNUSED: ClassVar = ("dataset", "data_root", "split_file", "mapping_left", "mapping_right", "train_split",
                         "val_split", "test_split", "use_camera_frame", "joint_set", "color_jitter", "glove_augmentation")
-    ELSEWHERE: ClassVar = ("image_size", *ModelInputConfig.FIXED)
+    ELSEWHERE: ClassVar = ("image_size", "blank_images", *ModelInputConfig.FIXED)
     pose_source: str = "wilor"
     fallback_pose_source: str | None = None
-    blank_images: bool = False
 
 
 @dataclass(frozen=True)
@@ -109,6 +108,22 @@ class TrainConfig:
             raise UserError(describe(source, "data.fallback_pose_source",
                                      f"must be null or the other pose source, got {fallback!r}"))
         return self
+
+
+def with_epochs(config: TrainConfig, epochs: int) -> tuple[TrainConfig, str | None]:
+    """`config` training `epochs` epochs (≥ 1) and a note when its warm-up had to be shortened: a warm-up longer
+    than the run becomes round(warm-up × epochs / configured epochs), at most epochs − 1."""
+    if isinstance(epochs, bool) or not isinstance(epochs, int) or epochs < 1:
+        raise UserError(f"--epochs must be a whole number ≥ 1, got {epochs!r}")
+    t = config.training
+    warmup, note = t.scheduler.warmup_epochs, None
+    if warmup > epochs:
+        shorter = min(epochs - 1, round(warmup * epochs / t.num_epochs))
+        note = (f"note: warm-up shortened from {warmup} to {shorter} epoch(s) for a run of {epochs} "
+                f"(in proportion to the config's {t.num_epochs} epochs)")
+        warmup = shorter
+    training = replace(t, num_epochs=epochs, scheduler=replace(t.scheduler, warmup_epochs=warmup))
+    return replace(config, training=training).check(), note
 
 
 SECTIONS = {"training": TrainingConfig, "system": SystemConfig, "data": TrainingDataConfig}
@@ -156,7 +171,7 @@ def describe_settings(config: TrainConfig) -> list[str]:
         f"loss: mse {loss.mse_weight:g} + l1 {loss.l1_weight:g} (×{loss.contact_weight:g} above {loss.pressure_threshold:g}) "
         f"+ tv {loss.tv_weight:g}; clips of {CLIP_LENGTH} frames at interval {FRAME_INTERVAL}; poses {config.data.pose_source}"
         f"{' falling back to ' + config.data.fallback_pose_source if config.data.fallback_pose_source else ''}"
-        f"{'; images blanked (pose-only baseline)' if config.data.blank_images else ''}; "
+        f"{'; images blanked (pose-only baseline)' if config.model.blank_images else ''}; "
         f"validation every {t.val_interval} epoch(s), a checkpoint every {t.save_interval}",
     ]
     if config.unused:

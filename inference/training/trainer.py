@@ -28,6 +28,7 @@ from touchanything.inference.model.model_config import SPAN
 from touchanything.inference.model.torch_device import join_process_group, resolve_device
 from touchanything.inference.training.clip_dataset import ClipDataset, clip_loader
 from touchanything.inference.training.feature_cache import FeatureCache
+from touchanything.inference.training.frame_cache import FrameCache
 from touchanything.inference.training.tactile_loss import tactile_loss
 from touchanything.inference.training.train_config import GRAD_CLIP, TrainConfig, train_config_to_dict
 
@@ -83,15 +84,31 @@ class Trainer:
         train_files = _files(data, split_file, "train")
         if not train_files:
             raise UserError("the split's train list is empty")
-        def dataset(files: list[Path]) -> ClipDataset:
-            d = config.data
-            return ClipDataset(files, c.image_size, d.pose_source, d.fallback_pose_source, d.blank_images)
+        val_files = _files(data, split_file, "val")
+        frame_cache = None if c.blank_images else self._frame_cache(Path(data), c.image_size)
 
-        self.train_set = dataset(train_files)
-        self.val_set = dataset(_files(data, split_file, "val"))
+        def dataset(files: list[Path], bar: tqdm) -> ClipDataset:
+            d = config.data
+            return ClipDataset(files, c.image_size, d.pose_source, d.fallback_pose_source, c.blank_images, frame_cache,
+                               on_episode=lambda: bar.update(1))
+
+        if self.world > 1 and self.rank != 0:
+            dist.barrier()  # rank 0 builds the missing frame-cache entries first; the others reuse them
+        with tqdm(total=len(train_files) + len(val_files), desc="trajectories", unit="file", disable=self.rank != 0,
+                  leave=False) as bar:
+            self.train_set = dataset(train_files, bar)
+            self.val_set = dataset(val_files, bar)
+        if self.world > 1 and self.rank == 0:
+            dist.barrier()
+        if frame_cache is not None and self.rank == 0:
+            log(f"frame cache {frame_cache.folder}: {frame_cache.reused} trajectories reused, {frame_cache.built} decoded "
+                f"at {c.image_size} px")
         if len(self.train_set) == 0:
             raise UserError(f"no training clips: every train trajectory is shorter than {SPAN} frames")
         self.model = build_model(c).to(self.device)
+        hands = self.model.set_pose_statistics(np.concatenate([e.poses for e in self.train_set.episodes]))
+        if hands and self.rank == 0:
+            log(f"pose input: wrist-relative joints and wrist position, standardised over {hands} training hand poses")
         self.net = DistributedDataParallel(self.model, find_unused_parameters=True) if self.world > 1 else self.model
         params = [p for p in self.model.parameters() if p.requires_grad]
         o = config.training.optimizer
@@ -103,6 +120,15 @@ class Trainer:
         self.train_loader, self.val_loader = self._loader(self.train_set, True), self._loader(self.val_set, False)
         self.result = TrainResult()
         self.start_epoch = 0
+
+    def _frame_cache(self, root: Path, size: int) -> FrameCache | None:
+        """The dataset's frame cache; None, with a note, when it cannot be written (frames are then decoded
+        clip by clip)."""
+        try:
+            return FrameCache.beside(root, size)
+        except UserError as exc:
+            self.log(f"{exc}; frames are decoded clip by clip")
+            return None
 
     def resume(self, path: Path) -> None:
         """Continue from a checkpoint of this run: weights, optimiser, schedule and epoch."""
@@ -170,7 +196,7 @@ class Trainer:
                 self.result.skipped_batches += 1
                 continue
             pred = self._forward(batch, self.cache)
-            self.result.view_sets["+".join(self.model.multi_view_encoder.last_kept)] += 1
+            self.result.view_sets["+".join(self.model.last_kept)] += 1
             loss = tactile_loss(pred, self._to_device(batch["target"]), mask, self.config.training.loss)
             self._check_loss(loss, epoch, step, batch)
             self.optimizer.zero_grad(set_to_none=True)

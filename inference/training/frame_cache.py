@@ -1,0 +1,138 @@
+"""Training frames decoded and resized once per dataset, kept in files beside it and reused by content.
+
+Every epoch reads the same frames; decoding them from gzip HDF5 chunks and resizing them is most of a small
+model's step on the CPU. `FrameCache.frames(path, views)` gives a trajectory's frames at the model's input
+size, (T, V, S, S, 3) uint8 RGB in the order of `views`, resized exactly as the uncached path does
+(`preprocess.resize_frame`), as a read-only memory map of `<root>/.frame_cache/<sha1 of the file>.<S>px.npy`.
+
+- **By content:** the file name is the SHA-1 of the trajectory's bytes, so a changed trajectory gets a new
+  entry and an unchanged one (copied, renamed, converted again to the same bytes) reuses its entry. Digests
+  are remembered in `index.json` by path, size and modification time (as git does), so a later run hashes
+  only files whose size or time changed.
+- **Atomic:** an entry is written under a temporary name and renamed when complete; an interrupted build
+  leaves no entry (its temporary file is removed, or replaced by the next build).
+- **Per process:** memory maps are opened on first use in each process (DataLoader workers open their own).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
+from touchanything.devices.errors import UserError
+from touchanything.inference.model.preprocess import resize_frame
+
+CACHE_DIR = ".frame_cache"
+INDEX = "index.json"
+
+
+def file_digest(path: Path) -> str:
+    """SHA-1 of a file's bytes (hex)."""
+    with open(path, "rb") as handle:
+        return hashlib.file_digest(handle, "sha1").hexdigest()
+
+
+def decode_frames(path: Path, views: tuple[str, ...], size: int) -> np.ndarray:
+    """Every frame of `views` of an HDF5 trajectory, resized → (T, V, S, S, 3) uint8; UserError for an
+    unreadable frame."""
+    with h5py.File(path, "r") as file:
+        datasets = [file[IMAGE_KEYS[view]] for view in views]
+        count = min(len(d) for d in datasets)
+        out = np.empty((count, len(views), size, size, 3), np.uint8)
+        for v, data in enumerate(datasets):
+            for i in range(count):
+                try:
+                    out[i, v] = resize_frame(data[i], size)
+                except OSError as exc:
+                    raise UserError(f"{path}: view {views[v]}: frame {i} unreadable ({exc})") from None
+    return out
+
+
+class FrameCache:
+    """Frames of HDF5 trajectories at `size` px under `folder` (`<root>/.frame_cache`)."""
+
+    def __init__(self, folder: Path, size: int) -> None:
+        self.folder, self.size = Path(folder), size
+        self._index = self._read_index()
+        self._paths: dict[Path, Path] = {}
+        self._open: dict[Path, np.ndarray] = {}
+        self.built = self.reused = 0
+
+    @classmethod
+    def beside(cls, root: Path, size: int) -> FrameCache:
+        """The cache of the dataset at `root`; UserError when its folder cannot be created or written."""
+        folder = Path(root) / CACHE_DIR
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            with tempfile.NamedTemporaryFile(dir=folder):
+                pass
+        except OSError as exc:
+            raise UserError(f"{folder}: cannot write the frame cache ({exc.strerror})") from None
+        return cls(folder, size)
+
+    def _read_index(self) -> dict:
+        try:
+            index = json.loads((self.folder / INDEX).read_text())
+            return index if isinstance(index, dict) else {}
+        except (OSError, ValueError):
+            return {}
+
+    def _write(self, target: Path, write) -> None:
+        """`write(handle)` into a temporary file beside `target`, renamed to it when complete (removed on error)."""
+        with tempfile.NamedTemporaryFile("wb", dir=self.folder, delete=False, suffix=".tmp") as handle:
+            try:
+                write(handle)
+            except BaseException:
+                handle.close()
+                os.unlink(handle.name)
+                raise
+        os.replace(handle.name, target)
+
+    def _write_index(self) -> None:
+        text = json.dumps(self._index, indent=1, sort_keys=True).encode()
+        self._write(self.folder / INDEX, lambda handle: handle.write(text))
+
+    def digest(self, path: Path) -> str:
+        """The file's SHA-1, from the index when its size and modification time are unchanged."""
+        stat = Path(path).stat()
+        key = str(Path(path).resolve())
+        known = self._index.get(key)
+        if isinstance(known, dict) and known.get("size") == stat.st_size and known.get("mtime_ns") == stat.st_mtime_ns:
+            return str(known["sha1"])
+        digest = file_digest(path)
+        self._index[key] = {"size": stat.st_size, "mtime_ns": stat.st_mtime_ns, "sha1": digest}
+        self._write_index()
+        return digest
+
+    def entry(self, path: Path, views: tuple[str, ...]) -> Path:
+        """The cache file of a trajectory's `views`, built now when missing."""
+        path = Path(path)
+        if path in self._paths:
+            return self._paths[path]
+        name = f"{self.digest(path)}.{'-'.join(views)}.{self.size}px.npy"
+        target = self.folder / name
+        if target.is_file():
+            self.reused += 1
+        else:
+            frames = decode_frames(path, views, self.size)
+            self._write(target, lambda handle: np.save(handle, frames))
+            self.built += 1
+        self._paths[path] = target
+        return target
+
+    def frames(self, path: Path, views: tuple[str, ...]) -> np.ndarray:
+        """(T, V, S, S, 3) uint8, read-only, memory-mapped in this process."""
+        path = Path(path)
+        if path not in self._open:
+            self._open[path] = np.load(self.entry(path, views), mmap_mode="r")
+        return self._open[path]
+
+    def __getstate__(self) -> dict:
+        """Worker processes get the entry names, not the parent's open maps."""
+        return {**self.__dict__, "_open": {}}

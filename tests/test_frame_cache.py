@@ -1,0 +1,117 @@
+"""The training frame cache: the same frames as decoding per clip, reused by content, rebuilt when the content
+changes, written atomically, and read the same by loader workers."""
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import torch
+
+from touchanything.devices.errors import UserError
+from touchanything.inference.training import frame_cache as frame_cache_module
+from touchanything.inference.training.clip_dataset import ClipDataset, clip_loader
+from touchanything.inference.training.frame_cache import CACHE_DIR, FrameCache
+
+
+@pytest.fixture
+def root(sim_hdf5_root, tmp_path) -> Path:
+    copy = tmp_path / "h5"
+    shutil.copytree(sim_hdf5_root, copy, ignore=shutil.ignore_patterns(CACHE_DIR))
+    return copy
+
+
+def trajectories(root: Path) -> list[Path]:
+    return sorted(root.rglob("*.hdf5"))
+
+
+def test_cached_clips_equal_clips_decoded_from_the_file(root):
+    files = trajectories(root)
+    cache = FrameCache.beside(root, 56)
+    cached, decoded = ClipDataset(files, 56, cache=cache), ClipDataset(files, 56)
+    assert cache.built == len(files) and cache.reused == 0
+    for index in (0, len(decoded) - 1):
+        a, b = cached[index]["views"], decoded[index]["views"]
+        assert a.keys() == b.keys() == {"ego", "wrist_left", "wrist_right"}
+        for view in a:
+            assert torch.equal(a[view], b[view])
+
+
+def test_entries_are_reused_by_content_and_rebuilt_when_it_changes(root):
+    files = trajectories(root)
+    ClipDataset(files, 56, cache=FrameCache.beside(root, 56))
+    entries = sorted((root / CACHE_DIR).glob("*.npy"))
+    assert len(entries) == len(files)
+
+    again = FrameCache.beside(root, 56)
+    ClipDataset(files, 56, cache=again)
+    assert (again.built, again.reused) == (0, len(files))
+
+    moved = root / "renamed.hdf5"  # the same bytes under another name: still the same entry
+    shutil.copy2(files[0], moved)
+    renamed = FrameCache.beside(root, 56)
+    renamed.entry(moved, ("ego", "wrist_left", "wrist_right"))
+    assert (renamed.built, renamed.reused) == (0, 1)
+
+    with h5py.File(files[0], "r+") as file:  # new content: a new entry, with the new frames
+        file["images/chest_color"][0] = 255
+    changed = FrameCache.beside(root, 56)
+    frames = changed.frames(files[0], ("ego", "wrist_left", "wrist_right"))
+    assert changed.built == 1 and np.all(frames[0, 0] == 255)
+    assert len(list((root / CACHE_DIR).glob("*.npy"))) == len(files) + 1
+
+
+def test_an_interrupted_build_leaves_no_entry_and_no_temporary_file(root, monkeypatch):
+    def broken(path, views, size):
+        raise KeyboardInterrupt
+
+    cache = FrameCache.beside(root, 56)
+    monkeypatch.setattr(frame_cache_module, "decode_frames", broken)
+    with pytest.raises(KeyboardInterrupt):
+        cache.entry(trajectories(root)[0], ("ego",))
+    monkeypatch.undo()
+
+    def failing_save(handle, frames):
+        handle.write(b"partial")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(np, "save", failing_save)
+    with pytest.raises(OSError):
+        cache.entry(trajectories(root)[0], ("ego",))
+    leftovers = [p.name for p in (root / CACHE_DIR).iterdir() if p.name != "index.json"]
+    assert leftovers == []
+
+
+def test_a_folder_that_cannot_be_written_is_one_line(root):
+    (root / CACHE_DIR).write_text("a file where the cache folder should be")
+    with pytest.raises(UserError, match=r"\.frame_cache: cannot write the frame cache"):
+        FrameCache.beside(root, 56)
+
+
+@pytest.mark.multiprocess
+def test_loader_workers_read_the_same_cached_batches(root):
+    files = trajectories(root)
+    dataset = ClipDataset(files, 56, cache=FrameCache.beside(root, 56))
+    batches = []
+    for workers in (0, 2):
+        loader = clip_loader(dataset, 2, workers, seed=4, shuffle=True)
+        loader.sampler.set_epoch(1)
+        batches.append([b["views"]["ego"] for b in loader])
+        del loader
+    assert len(batches[0]) == len(batches[1])
+    assert all(torch.equal(a, b) for a, b in zip(*batches))
+
+
+def test_the_index_spares_hashing_unchanged_files(root, monkeypatch):
+    files = trajectories(root)
+    FrameCache.beside(root, 56).digest(files[0])
+    hashed = []
+    monkeypatch.setattr(frame_cache_module, "file_digest", lambda path: hashed.append(path) or "x")
+    FrameCache.beside(root, 56).digest(files[0])
+    assert hashed == []
+    os.utime(files[0], ns=(0, 0))
+    FrameCache.beside(root, 56).digest(files[0])
+    assert hashed == [files[0]]
