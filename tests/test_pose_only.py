@@ -48,7 +48,6 @@ from touchanything.inference.training.train_config import (
     SystemConfig,
     TrainConfig,
     TrainingConfig,
-    TrainingDataConfig,
     describe_settings,
     train_config_from_file,
     train_config_to_dict,
@@ -60,8 +59,8 @@ def nano_config(blank: bool = False) -> TrainConfig:
     """nano with a trainable backbone, 6 epochs at lr 2e-3 without warm-up, batch 4, loading in this process."""
     training = TrainingConfig(batch_size=4, num_epochs=6, save_interval=100, num_workers=0,
                               optimizer=OptimizerConfig(lr=2e-3), scheduler=SchedulerConfig(warmup_epochs=0))
-    return TrainConfig(model=with_backbone(PRESETS["nano"], freeze=False), training=training,
-                       system=SystemConfig(seed=1), data=TrainingDataConfig(blank_images=blank))
+    model = dataclasses.replace(with_backbone(PRESETS["nano"], freeze=False), blank_images=blank)
+    return TrainConfig(model=model, training=training, system=SystemConfig(seed=1))
 
 
 @pytest.fixture(scope="module")
@@ -223,10 +222,10 @@ def test_the_blank_images_config_key(tmp_path):
     path = tmp_path / "blank.yaml"
     path.write_text("data: {blank_images: true, pose_source: wilor}\n")
     config = train_config_from_file(path)
-    assert config.data.blank_images and "data.blank_images" not in config.unused
+    assert config.model.blank_images and "data.blank_images" not in config.unused
     assert "images blanked" in "\n".join(describe_settings(config))
     assert train_config_to_dict(config)["data"]["blank_images"] is True
-    assert not TrainConfig().data.blank_images
+    assert not TrainConfig().model.blank_images
     for value in ("1", "yes please", "[true]"):
         path.write_text(f"data: {{blank_images: {value}}}\n")
         with pytest.raises(UserError) as err:

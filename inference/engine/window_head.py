@@ -62,5 +62,10 @@ class WindowHead(nn.Module):
         fused = self.fusion(visual[None], self.encode_poses(joints, joint_ids)[None])[0]
         feats = self.decoder.joint_proj(fused)
         p, j, c = feats.shape
-        hands = self.decoder.hand(feats.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, c))
+        per_hand = feats.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, c)
+        if getattr(self.decoder, "skip", 0):
+            pose = self.pose_encoder.normalised(joints)
+            hands = self.decoder.hand(per_hand, pose.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, -1))
+        else:
+            hands = self.decoder.hand(per_hand)
         return hands.reshape(p, j // JOINTS_PER_HAND, *hands.shape[-2:])

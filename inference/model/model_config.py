@@ -65,6 +65,7 @@ class MultiViewConfig:
     mlp_ratio: float = field(default=4.0, metadata=RATIO)
     dropout: float = field(default=0.1, metadata=DROPOUT)
     view_dropout_prob: float = field(default=0.3, metadata=limits(0.0, 1.0))
+    summary_tokens: bool = False
 
 
 POSE_INPUTS = ("camera", "hand")
@@ -93,7 +94,7 @@ class FusionConfig:
     dropout: float = field(default=0.1, metadata=DROPOUT)
 
 
-DECODER_TYPES = ("joint_level", "mlp")
+DECODER_TYPES = ("joint_level", "mlp", "mlp_skip")
 
 
 @dataclass(frozen=True)
@@ -160,7 +161,7 @@ class ModelConfig:
 
     @property
     def patches(self) -> int:
-        """Visual tokens per frame."""
+        """Backbone tokens per frame."""
         return (self.image_size // self.patch_size) ** 2
 
     def check(self, source: str = "config") -> ModelConfig:

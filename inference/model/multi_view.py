@@ -25,8 +25,11 @@ class MultiViewEncoder(nn.Module):
     """
 
     def __init__(self, vision_encoder: VisionEncoder, width: int, heads: int, layers: int, mlp_ratio: float,
-                 dropout: float, view_dropout: float) -> None:
+                 dropout: float, view_dropout: float, summary_tokens: bool = False) -> None:
         super().__init__()
+        if summary_tokens:  # project extension: one token per view slot, appended after the fused tokens
+            self.absent_view_tokens = nn.Parameter(torch.zeros(len(VIEW_NAMES), width))
+        self.summary_tokens = summary_tokens
         self.vision_encoder = vision_encoder
         self.view_embeddings = nn.ParameterDict({v: nn.Parameter(torch.randn(1, 1, 1, width) * 0.02) for v in VIEW_NAMES})
         self.cross_view_transformer = encoder_layers(width, heads, layers, mlp_ratio, dropout)
@@ -50,14 +53,19 @@ class MultiViewEncoder(nn.Module):
     def fuse(self, encoded: dict[str, torch.Tensor]) -> torch.Tensor:
         """{view: (B, T, N, D)} already encoded → (B, T, N, D) fused and normalised."""
         order = [v for v in VIEW_NAMES if v in encoded]
-        if len(order) == 1:
-            return self.output_norm(encoded[order[0]])
         b, t, n, d = encoded[order[0]].shape
-        flat = [encoded[v].reshape(b * t, n, d) for v in order]
-        summary = torch.stack([f.mean(dim=1) for f in flat], dim=1)
-        weights = torch.softmax(self.view_gate(self.cross_view_transformer(summary)).squeeze(-1), dim=-1)
-        fused = sum(weights[:, i, None, None] * f for i, f in enumerate(flat))
-        return self.output_norm(fused).reshape(b, t, n, d)
+        if len(order) == 1:
+            fused = encoded[order[0]]
+        else:
+            flat = [encoded[v].reshape(b * t, n, d) for v in order]
+            summary = torch.stack([f.mean(dim=1) for f in flat], dim=1)
+            weights = torch.softmax(self.view_gate(self.cross_view_transformer(summary)).squeeze(-1), dim=-1)
+            fused = sum(weights[:, i, None, None] * f for i, f in enumerate(flat)).reshape(b, t, n, d)
+        if self.summary_tokens:
+            slots = [encoded[v].mean(dim=2) if v in encoded else self.absent_view_tokens[i].expand(b, t, d)
+                     for i, v in enumerate(VIEW_NAMES)]
+            fused = torch.cat([fused, torch.stack(slots, dim=2)], dim=2)
+        return self.output_norm(fused)
 
     def forward(self, views: dict[str, torch.Tensor]) -> torch.Tensor:
         return self.fuse({v: self.encode_view(v, views[v]) for v in self.kept_views(views)})

@@ -45,19 +45,23 @@ class MlpTactileDecoder(nn.Module):
     per-joint projection to C channels, then per hand the 21 joints' features flattened → Linear(21·C, 8·C) →
     GELU → Linear → 441 cells → sigmoid. No spatial prior and no BatchNorm."""
 
-    def __init__(self, width: int, channels: int, dropout: float, size: int = 21) -> None:
+    def __init__(self, width: int, channels: int, dropout: float, size: int = 21, skip: int = 0) -> None:
         super().__init__()
-        self.channels, self.size = channels, size
+        self.channels, self.size, self.skip = channels, size, skip
         self.joint_proj = nn.Sequential(nn.Linear(width, channels), nn.GELU(), nn.Dropout(dropout))
-        self.cells = nn.Sequential(nn.Linear(21 * channels, 8 * channels), nn.GELU(), nn.Dropout(dropout),
+        self.cells = nn.Sequential(nn.Linear(21 * channels + skip, 8 * channels), nn.GELU(), nn.Dropout(dropout),
                                    nn.Linear(8 * channels, size * size), nn.Sigmoid())
 
-    def hand(self, feats: torch.Tensor) -> torch.Tensor:
-        """(BT, 21, C) one hand's joint features → (BT, 1, 21, 21)."""
-        return self.cells(feats.flatten(1)).reshape(-1, 1, self.size, self.size)
+    def hand(self, feats: torch.Tensor, pose: torch.Tensor | None = None) -> torch.Tensor:
+        """(BT, 21, C) one hand's joint features (and with `skip`, its (BT, 21, F) normalised pose input)
+        → (BT, 1, 21, 21)."""
+        x = feats.flatten(1) if pose is None else torch.cat([feats.flatten(1), pose.flatten(1)], dim=1)
+        return self.cells(x).reshape(-1, 1, self.size, self.size)
 
-    def forward(self, fused: torch.Tensor) -> torch.Tensor:
+    def forward(self, fused: torch.Tensor, pose: torch.Tensor | None = None) -> torch.Tensor:
         b, t, j, d = fused.shape
         x = self.joint_proj(fused.reshape(b * t, j, d))
-        out = torch.cat([self.hand(x[:, :21]), self.hand(x[:, 21:])], dim=1)
+        p = None if pose is None else pose.reshape(b * t, j, -1)
+        out = torch.cat([self.hand(x[:, :21], None if p is None else p[:, :21]),
+                         self.hand(x[:, 21:], None if p is None else p[:, 21:])], dim=1)
         return out.reshape(b, t, 2, *out.shape[-2:])
