@@ -24,14 +24,16 @@ LIVE_IMAGE_SCALE = 0.5
 the encoding time, which the live path's CPU needs more (docs/rerun.md, "Costs")."""
 
 
-def add_rerun_arguments(parser: argparse.ArgumentParser) -> None:
+def add_rerun_arguments(parser: argparse.ArgumentParser, serve: bool = True) -> None:
+    """--rerun, --overwrite and (`serve`) --rerun-serve."""
     parser.add_argument("--rerun", type=Path, metavar="FILE.rrd",
                         help="also write a Rerun recording of the session (cameras, 3D hands with the pressure painted on "
                              "them, measured and predicted maps, contact, official metrics, latency, trackers); open it "
                              "with `rerun FILE.rrd` (default: none)")
-    parser.add_argument("--rerun-serve", type=int, nargs="?", const=DEFAULT_WEB_PORT, metavar="PORT",
-                        help=f"also serve the recording to a web viewer at http://localhost:PORT (default port "
-                             f"{DEFAULT_WEB_PORT}; default: not served)")
+    if serve:
+        parser.add_argument("--rerun-serve", type=int, nargs="?", const=DEFAULT_WEB_PORT, metavar="PORT",
+                            help=f"also serve the recording to a web viewer at http://localhost:PORT (default port "
+                                 f"{DEFAULT_WEB_PORT}; default: not served)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing --rerun file (default: refuse)")
 
 

@@ -42,6 +42,11 @@ class RerunSink:
         self._thread = threading.Thread(target=self._run, name="touchanything-rerun", daemon=True)
         self._thread.start()
 
+    @property
+    def pending(self) -> int:
+        """Items waiting for the logging thread (at most MAX_PENDING)."""
+        return len(self._queue)
+
     def _put(self, job: Callable[[], None]) -> None:
         with self._wake:
             if len(self._queue) >= MAX_PENDING:

@@ -134,8 +134,10 @@ class LiveEngine:
 
 
 def lower_priority(niceness: int) -> None:
-    """Raise the calling thread's nice value (Linux: per thread); silently kept where not permitted."""
+    """Raise the calling thread's nice value by `niceness` (Linux: per thread; at most 19), relative to the
+    process's, so that a process started with `nice` keeps its threads' order; silently kept where not permitted."""
     try:
-        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), niceness)
+        thread = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, thread, min(19, os.getpriority(os.PRIO_PROCESS, thread) + niceness))
     except (OSError, AttributeError):
         pass
