@@ -12,6 +12,7 @@ from tqdm import tqdm
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, check_rrd_output
 from touchanything.app.sessions.rerun_trajectories import TrajectoryRecordings
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
+from touchanything.devices.episodes.episode_loader import episode_exists
 from touchanything.devices.errors import UserError
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.evaluation import VIEW_SETS, EvaluationResult, evaluate, vision_share_summary
@@ -130,7 +131,7 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
         if num_traj < 1:
             raise UserError(f"--num-traj must be at least 1, got {num_traj}")
         files = files[:num_traj]
-    missing = [f for f in files if not f.is_file()]
+    missing = [f for f in files if not episode_exists(f)]
     if missing:
         raise UserError(f"{missing[0]}: listed in the split but not found ({len(missing)} missing)")
     if not files:

@@ -75,6 +75,8 @@ class EngineSession:
                 self.live.stop()
             except Exception as exc:  # shown to the user; the session ends either way
                 self.message = f"engine stopped with an error: {exc}"
+        if self.rerun is not None:
+            self.rerun.close()
 
     def submit(self, snapshot: Snapshot, predict: bool = True) -> None:
         """Source thread: show the snapshot and hand it (with only the views switched on) to the engine;
