@@ -4,7 +4,7 @@ of the 2D maps), flat-shaded under a light from the viewer, painted on the fixed
 of the hand and cells outside the layout are grey. Measured | predicted, each left hand then right hand.
 
 Orthographic projection, back faces culled, painter's order (far triangles first) with OpenCV's polygon fill;
-`benchmarks/hand3d_panel.py` measures the time per frame.
+`benchmarks/rerun_costs.py` measures the time per frame.
 """
 from __future__ import annotations
 

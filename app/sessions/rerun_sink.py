@@ -4,6 +4,7 @@ priority, encodes and logs. When logging falls behind, the oldest items are drop
 stays bounded however long the session runs."""
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections import deque
@@ -19,8 +20,9 @@ from touchanything.viz.rerun_recording import RerunRecording
 
 MAX_PENDING = 16
 """Items waiting for the logging thread at most (about half a second of the rig's snapshots)."""
-LOGGER_NICENESS = ENGINE_NICENESS + 2
-"""The logging thread yields to the engine's thread (and to capture and display before it)."""
+LOGGER_NICENESS_ABOVE = 2
+"""The logging thread's nice value is this much above the engine thread's and the process's (whichever is
+higher): it yields to the engine, and to capture and display before it, also in a process started with `nice`."""
 
 
 class RerunSink:
@@ -72,7 +74,11 @@ class RerunSink:
         self._put(job)
 
     def _run(self) -> None:
-        lower_priority(LOGGER_NICENESS)
+        try:
+            current = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+        except (OSError, AttributeError):
+            current = 0
+        lower_priority(min(19, max(current, ENGINE_NICENESS) + LOGGER_NICENESS_ABOVE))
         while True:
             with self._wake:
                 while self._running and not self._queue:

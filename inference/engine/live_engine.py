@@ -134,10 +134,8 @@ class LiveEngine:
 
 
 def lower_priority(niceness: int) -> None:
-    """Raise the calling thread's nice value by `niceness` (Linux: per thread; at most 19), relative to the
-    process's, so that a process started with `nice` keeps its threads' order; silently kept where not permitted."""
+    """Raise the calling thread's nice value (Linux: per thread); silently kept where not permitted."""
     try:
-        thread = threading.get_native_id()
-        os.setpriority(os.PRIO_PROCESS, thread, min(19, os.getpriority(os.PRIO_PROCESS, thread) + niceness))
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), niceness)
     except (OSError, AttributeError):
         pass
