@@ -186,3 +186,24 @@ def test_eval_video_writes_one_recording_per_trajectory(sim_hdf5_root, tiny_chec
         assert rows["/pressure/measured"].data_frames("EncodedImage:blob") == list(range(frames))
         assert len(rows["/cameras/ego"].data_frames("EncodedImage:blob")) == frames  # HDF5 frames go as JPEG
     assert sorted(p.name for p in tmp_path.iterdir()) == ["eval", "eval.rrd"]  # no part left behind
+
+
+def _dashboard_with_recording(episode: Path, rrd: Path) -> str:
+    from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint
+    from touchanything.app.sessions.replay_runs import replay_in_dashboard
+    from touchanything.devices.snapshot import VIEW_NAMES
+
+    dashboard = replay_in_dashboard(episode, ModelChoice(default_checkpoint()), VIEW_NAMES, max_frames=30, rerun=RerunTarget(rrd))
+    return dashboard.session.rerun.line()
+
+
+def test_the_dashboard_replay_logs_through_the_session(dashboard_display, episode_dir, tmp_path):
+    from test_dashboard import in_fresh_process
+
+    line = in_fresh_process(_dashboard_with_recording, episode_dir, tmp_path / "d.rrd")
+    logged = int(line.split()[1])
+    rows, static = recording_rows(tmp_path / "d.rrd")
+    assert "AssetVideo:blob" in static["/cameras/ego"]  # the raw episode's MP4, not frames
+    measured = rows["/pressure/measured"].data_frames("EncodedImage:blob")
+    assert len(measured) > 10 and measured == sorted(measured) and logged >= len(measured)
+    assert len(rows["/pressure/predicted"].data_frames("EncodedImage:blob")) > 5
