@@ -10,6 +10,7 @@ from touchanything.app.commands import (
     demo_command,
     devices_command,
     eval_command,
+    export_lerobot_command,
     export_onnx_command,
     grids_command,
     info_command,
@@ -25,7 +26,7 @@ from touchanything.devices.errors import UserError
 
 COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command, train_command,
             eval_command, replay_command, pose_command, live_command, record_command, devices_command, export_onnx_command,
-            bench_command)
+            bench_command, export_lerobot_command)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -15,13 +15,15 @@ VIEW_LABELS = {"ego": "Head", "wrist_left": "Left Wrist", "wrist_right": "Right 
 
 
 def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred: np.ndarray | None, footer: str,
-                     strip: np.ndarray | None = None) -> np.ndarray:
+                     strip: np.ndarray | None = None, hand3d: np.ndarray | None = None) -> np.ndarray:
     """(806, 1440, 3) uint8: the three views (480×270 each), GT | prediction | error panels, `strip`
-    (150, 1440, 3) and the footer line; without a strip (656, 1440, 3).
+    (150, 1440, 3) and the footer line; without a strip (656, 1440, 3). `hand3d` (h, 1440, 3), the pressure on
+    the 3D hands, goes below the panels (the frame grows by h).
 
     Absent views, ground truth or prediction leave labelled placeholders."""
     strip_height = 0 if strip is None else STRIP_HEIGHT
-    frame = np.empty((CAMERA_HEIGHT + PANEL_HEIGHT + strip_height + FOOTER_HEIGHT, WIDTH, 3), np.uint8)
+    extra = 0 if hand3d is None else hand3d.shape[0]
+    frame = np.empty((CAMERA_HEIGHT + PANEL_HEIGHT + extra + strip_height + FOOTER_HEIGHT, WIDTH, 3), np.uint8)
     frame[:] = BACKGROUND
     for k, (view, label) in enumerate(VIEW_LABELS.items()):
         x = k * 480
@@ -38,8 +40,11 @@ def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred:
             continue
         frame[CAMERA_HEIGHT:CAMERA_HEIGHT + PANEL_HEIGHT, x:x + 480] = pressure_panel(grids, title, 480, PANEL_HEIGHT,
                                                                                      error=error)
+    top = CAMERA_HEIGHT + PANEL_HEIGHT
+    if hand3d is not None:
+        frame[top:top + extra] = hand3d
     if strip is not None:
-        frame[CAMERA_HEIGHT + PANEL_HEIGHT:CAMERA_HEIGHT + PANEL_HEIGHT + STRIP_HEIGHT] = strip
+        frame[top + extra:top + extra + STRIP_HEIGHT] = strip
     put_text(frame, footer, (10, frame.shape[0] - 8), 0.5)
     return frame
 

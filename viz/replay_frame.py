@@ -13,6 +13,7 @@ from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.comparison_video import STRIP_HEIGHT, comparison_frame
 from touchanything.viz.contact import contact_badges, hand_contact
+from touchanything.viz.hand3d_panel import hand3d_panel
 from touchanything.viz.hand_projection import draw_hands, pose_label
 from touchanything.viz.line_plot import LATENCY_PLOT_MS, PLOT_SAMPLES, line_plot
 
@@ -34,11 +35,13 @@ def footer_text(snapshot: Snapshot, total: int, prediction: Prediction | None, m
 
 
 class ReplayFrameRenderer:
-    """Renders the frames of one episode, in order: keeps the recent per-frame series the bottom strip plots."""
+    """Renders the frames of one episode, in order: keeps the recent per-frame series the bottom strip plots.
+    `hand3d`: add the panel of the pressure painted on the 3D hands (`viz.hand3d_panel`)."""
 
-    def __init__(self, total_frames: int, bend: np.ndarray) -> None:
+    def __init__(self, total_frames: int, bend: np.ndarray, hand3d: bool = False) -> None:
         self.total_frames = total_frames
         self.bend = bend
+        self.hand3d = hand3d
         self.viou: list[float] = []
         self.ciou: list[float] = []
         self.step_ms: list[float] = []
@@ -52,7 +55,8 @@ class ReplayFrameRenderer:
         if "ego" in images:
             images["ego"] = draw_hands(images["ego"], snapshot.joints, snapshot.joints_valid, shown)
         footer = footer_text(snapshot, self.total_frames, latest, metrics)
-        return comparison_frame(images, truth, shown, footer, self._strip(shown, truth))
+        hands = hand3d_panel(snapshot.joints, snapshot.joints_valid, truth, shown) if self.hand3d else None
+        return comparison_frame(images, truth, shown, footer, self._strip(shown, truth), hands)
 
     def _add(self, metrics: RunningMetrics | None, prediction: Prediction | None) -> None:
         rolling = metrics.rolling() if metrics is not None else None

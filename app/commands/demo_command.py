@@ -8,6 +8,7 @@ from pathlib import Path
 from touchanything.app.sessions.bundled import SAMPLE_DIR, sample_episodes
 from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint
 from touchanything.app.sessions.replay_runs import replay_in_dashboard, replay_to_video
+from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.display import display_problem
@@ -20,7 +21,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("episode", type=Path, nargs="?", help="episode folder or .hdf5 (default: the bundled sample)")
     parser.add_argument("--headless", action="store_true", help="write the comparison video instead of a window")
     parser.add_argument("--out", type=Path, default=DEMO_VIDEO, help=f"video for --headless (default: {DEMO_VIDEO})")
+    parser.add_argument("--hand3d", action="store_true", help="add the pressure painted on 3D hands (measured | "
+                                                              "predicted) to the comparison video (default: off)")
     add_device_argument(parser)
+    add_rerun_arguments(parser)
     parser.set_defaults(run=run)
 
 
@@ -32,13 +36,14 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"{SAMPLE_DIR}: no bundled sample episode found; pass an episode path")
         path = samples[0]
     choice = ModelChoice(default_checkpoint(), device=args.device)
+    rerun = rerun_target(args)
     problem = None if args.headless else display_problem()
     if problem:
         print(f"no dashboard: {problem}. Writing the comparison video instead.")
     if args.headless or problem:
-        replay_to_video(path, choice, VIEW_NAMES, args.out)
+        replay_to_video(path, choice, VIEW_NAMES, args.out, args.hand3d, rerun)
         print(f"watch it with any video player: {args.out}")
     else:
-        stats = replay_in_dashboard(path, choice, VIEW_NAMES).stats
+        stats = replay_in_dashboard(path, choice, VIEW_NAMES, rerun=rerun).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

@@ -11,8 +11,12 @@ import numpy as np
 from tqdm import tqdm
 
 from touchanything.app.sessions.bundled import BASELINES, MODELS_DIR, bundled_baselines
+from touchanything.app.sessions.rerun_output import add_rerun_arguments, check_rrd_output
+from touchanything.app.sessions.rerun_trajectories import TrajectoryRecordings
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
+from touchanything.devices.episodes.episode_loader import episode_exists
 from touchanything.devices.errors import UserError
+from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.evaluation import VIEW_SETS, EvaluationResult, evaluate, vision_share_summary
 from touchanything.inference.evaluation.metrics import DETECTION_METRICS, EVENT_METRICS, METRICS
 from touchanything.inference.model.checkpoint import load_model
@@ -27,6 +31,7 @@ from touchanything.inference.model.torch_device import (
     resolve_device,
 )
 from touchanything.viz.comparison_video import comparison_frame, write_comparison_video
+from touchanything.viz.hand3d_panel import hand3d_panel
 
 TIMING_COLUMNS = DETECTION_METRICS[:3] + EVENT_METRICS[:4]
 """The extra metrics in the Markdown table (support and event counts are in results.json only)."""
@@ -58,6 +63,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                              f"{' and '.join(f'models/{name}' for name in BASELINES)})")
     parser.add_argument("--out", type=Path, help="folder for results.json and results.md")
     parser.add_argument("--video", action="store_true", help="also write a comparison video per trajectory into OUT")
+    parser.add_argument("--hand3d", action="store_true", help="with --video: add the pressure painted on 3D hands "
+                                                              "(measured | predicted) to the videos (default: off)")
+    add_rerun_arguments(parser, serve=False)
     parser.set_defaults(run=run)
 
 
@@ -115,13 +123,17 @@ def markdown(results: list[EvaluationResult], split: str, pose_only: str | None 
     return "\n".join(lines)
 
 
-def trajectory_frames(episode, prediction, gt):
-    """Comparison frames of one evaluated trajectory (stitched prediction against ground truth)."""
+def trajectory_frames(episode, prediction, gt, hand3d: bool = False):
+    """Comparison frames of one evaluated trajectory (stitched prediction against ground truth); `hand3d`: with
+    the pressure painted on the 3D hands (the episode's WiLoR poses)."""
     for i in range(episode.num_frames):
         images = {v: s.read(i) for v, s in episode.views.items()}
         footer = f"Frame {i:04d}/{episode.num_frames}  t={episode.timestamps_us[i] / 1e6:.2f}s  [{episode.task}/{episode.trajectory_id}]"
         shown = np.where(np.isnan(gt[i]), np.nan, prediction[i])  # the ground truth's layout mask, as officially
-        yield comparison_frame({v: im for v, im in images.items() if im is not None}, gt[i], shown, footer)
+        hands = None
+        if hand3d and episode.wilor is not None:
+            hands = hand3d_panel(episode.wilor.joints[i].reshape(42, 3), episode.wilor.valid[i], gt[i], shown)
+        yield comparison_frame({v: im for v, im in images.items() if im is not None}, gt[i], shown, footer, hand3d=hands)
 
 
 def split_files(data: Path, split: str, split_file: Path | None, num_traj: int | None) -> list[Path]:
@@ -130,7 +142,7 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
         if num_traj < 1:
             raise UserError(f"--num-traj must be at least 1, got {num_traj}")
         files = files[:num_traj]
-    missing = [f for f in files if not f.is_file()]
+    missing = [f for f in files if not episode_exists(f)]
     if missing:
         raise UserError(f"{missing[0]}: listed in the split but not found ({len(missing)} missing)")
     if not files:
@@ -139,18 +151,20 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
 
 
 def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: str, group: ProcessGroup,
-                    blank: bool = False, name: str = "") -> EvaluationResult:
-    """One view configuration (`blank`: its pose-only twin; `name`: a baseline's); the progress bar (main
-    process) shows encoded frames/s and trajectories done."""
+                    blank: bool = False, name: str = "", recordings: TrajectoryRecordings | None = None) -> EvaluationResult:
+    """One view configuration (`blank`: its pose-only twin; `name`: a baseline's); `recordings`: each trajectory
+    into the Rerun recording. The progress bar (main process) shows encoded frames/s and trajectories done."""
     mine = len(range(group.rank, len(files), group.world))
     finished = []
     suffix = f"_{name}" if name else "_pose_only" if blank else ""
     with tqdm(unit=" frames", unit_scale=True, desc=f"eval {views}{suffix.replace('_', ' ')}",
               disable=not group.is_main) as bar:
         def done(row, episode, prediction, gt) -> None:
+            label = f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}{suffix}"
             if args.video:
-                video = f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}{suffix}"
-                write_comparison_video(args.out / f"{video}.mp4", trajectory_frames(episode, prediction.stitched, gt))
+                write_comparison_video(args.out / f"{label}.mp4", trajectory_frames(episode, prediction.stitched, gt, args.hand3d))
+            if recordings is not None:
+                recordings.add(label, episode, prediction.stitched, gt)
             finished.append(row)
             bar.set_postfix(trajectories=f"{len(finished)}/{mine}")
 
@@ -194,8 +208,12 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--batch-size must be at least 1, got {args.batch_size}")
     if args.video and not args.out:
         raise UserError("--video needs --out (the folder the videos go to)")
+    if args.rerun is not None:
+        check_rrd_output(args.rerun, args.overwrite)
     files = split_files(args.data, args.split, args.split_file, args.num_traj)
     group = join_process_group(args.device)
+    if args.rerun is not None and group.world > 1:
+        raise UserError("--rerun records in one process; run eval without torchrun for a recording")
     device = resolve_device(args.device, group.local_rank)
     check_precision(args.precision, device)
     model = load_model(args.checkpoint, args.config).to(device)
@@ -210,12 +228,18 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise UserError(f"{args.out}: cannot create the output folder ({exc.strerror})") from None
     results = []
-    for views in args.views:
-        results.append(_evaluate_views(args, model, files, views, group))
-        if baseline_model is not None:
-            results.append(_evaluate_views(args, baseline_model, files, views, group, blank=True))
-        for name, (_, other) in baselines.items():
-            results.append(dataclasses.replace(_evaluate_views(args, other, files, views, group, name=name), baseline=name))
+    recordings = args.rerun and TrajectoryRecordings(args.rerun, TactileLayout.default().bend, {"checkpoint": str(args.checkpoint)})
+    try:
+        for views in args.views:
+            results.append(_evaluate_views(args, model, files, views, group, recordings=recordings))
+            if baseline_model is not None:
+                results.append(_evaluate_views(args, baseline_model, files, views, group, blank=True, recordings=recordings))
+            for name, (_, other) in baselines.items():
+                result = _evaluate_views(args, other, files, views, group, name=name, recordings=recordings)
+                results.append(dataclasses.replace(result, baseline=name))
+    finally:
+        if recordings is not None:
+            recordings.close()
     if not group.is_main:
         return 0
     table = markdown(results, args.split, baseline and str(baseline), {n: str(c) for n, (c, _) in baselines.items()})
@@ -227,4 +251,6 @@ def run(args: argparse.Namespace) -> int:
         (args.out / "results.json").write_text(json.dumps(payload, indent=1, allow_nan=True) + "\n")
         (args.out / "results.md").write_text(table)
         print(f"results: {args.out / 'results.json'}, {args.out / 'results.md'}")
+    if args.rerun is not None:
+        print(f"rerun: {args.rerun} ({len(recordings.parts)} recordings; open with: rerun {args.rerun})")
     return 0

@@ -5,20 +5,21 @@ import argparse
 from pathlib import Path
 
 from touchanything.app.sessions.episode_summary import dataset_lines, episode_lines
-from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.episodes.episode_loader import episode_exists, open_episode
 from touchanything.devices.episodes.raw_episode import is_raw_episode
 from touchanything.devices.errors import UserError
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("info", help="summarise an episode, an HDF5 file or a dataset root")
-    parser.add_argument("path", type=Path, help="raw episode folder, .hdf5 file, or dataset root")
+    parser.add_argument("path", type=Path, help="raw episode folder, .hdf5 file, dataset root, LeRobot dataset, or one of "
+                                                "its episodes (ROOT/episode_NNNNNN)")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     path: Path = args.path
-    if not path.exists():
+    if not episode_exists(path):
         raise UserError(f"{path}: not found")
     if path.is_dir() and not is_raw_episode(path):
         lines = dataset_lines(path)

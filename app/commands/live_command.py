@@ -11,6 +11,15 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.app.sessions.engine_choice import add_device_argument
+from touchanything.app.sessions.rerun_output import (
+    LIVE_IMAGE_SCALE,
+    add_rerun_arguments,
+    finish,
+    open_recording,
+    rerun_target,
+    session_properties,
+)
+from touchanything.app.sessions.rerun_sink import RerunSink, seconds_since_first
 from touchanything.viz.hand_projection import pose_label
 
 SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
@@ -22,6 +31,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--headless", action="store_true", help="no window: run for --seconds and print status")
     parser.add_argument("--seconds", type=float, default=10.0, help="how long --headless runs (default 10)")
     add_device_argument(parser, default=None)
+    add_rerun_arguments(parser)
     parser.set_defaults(run=run)
 
 
@@ -80,14 +90,24 @@ def run(args: argparse.Namespace) -> int:
         from touchanything.devices.errors import UserError
 
         raise UserError(f"cannot open the dashboard: {problem}; use --headless")
+    target = rerun_target(args, LIVE_IMAGE_SCALE)
     session = open_live_session(args.scene, args.device)
-    session.start()
-    if args.headless:
-        try:
-            run_headless(session, args.seconds)
-        finally:
-            session.close()
-    else:
-        stats = Dashboard(session).run()
-        print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
+    engine = session.live and session.live.engine
+    recording = target and open_recording(target, f"live {args.scene.stem}", session_properties(session.choice, engine))
+    if recording is not None:
+        session.rerun = RerunSink(recording, session.bend, seconds_since_first())
+    try:
+        session.start()
+        if args.headless:
+            try:
+                run_headless(session, args.seconds)
+            finally:
+                session.close()
+        else:
+            stats = Dashboard(session).run()
+            print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
+    finally:
+        if recording is not None:
+            print(session.rerun.line())
+            finish(recording, keep_serving=args.headless)
     return 0

@@ -8,8 +8,10 @@ from pathlib import Path
 
 from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint
 from touchanything.app.sessions.replay_runs import replay_in_dashboard, replay_to_video
+from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.inference.engine.engine_config import RUNTIMES
+from touchanything.viz.display import display_problem
 
 RECORDINGS = Path("recordings")
 
@@ -34,6 +36,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--headless", action="store_true", help="no window: write the comparison video instead")
     parser.add_argument("--out", type=Path, help="the comparison video to write (.mp4; implies --headless; "
                                                   "default recordings/<trajectory>_replay.mp4)")
+    parser.add_argument("--hand3d", action="store_true", help="add the pressure painted on 3D hands (measured | "
+                                                              "predicted) to the comparison video (default: off)")
+    add_rerun_arguments(parser)
     parser.set_defaults(run=run)
 
 
@@ -52,9 +57,15 @@ def default_video(path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.headless or args.out is not None:
-        replay_to_video(args.episode, model_choice(args), selected_views(args), args.out or default_video(args.episode))
+    rerun = rerun_target(args)
+    headless = args.headless or args.out is not None
+    if not headless and rerun is not None and (problem := display_problem()):
+        print(f"no dashboard: {problem}. Writing the Rerun recording only (--headless: the comparison video too).")
+        replay_to_video(args.episode, model_choice(args), selected_views(args), None, rerun=rerun)
+    elif headless:
+        replay_to_video(args.episode, model_choice(args), selected_views(args), args.out or default_video(args.episode),
+                        args.hand3d, rerun)
     else:
-        stats = replay_in_dashboard(args.episode, model_choice(args), selected_views(args)).stats
+        stats = replay_in_dashboard(args.episode, model_choice(args), selected_views(args), rerun=rerun).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

@@ -12,6 +12,7 @@ import numpy as np
 
 from touchanything.app.sessions.bundled import bundled_models
 from touchanything.app.sessions.engine_choice import CPU_TIERS, ModelChoice, build_engine, model_label, tiers_for
+from touchanything.app.sessions.rerun_sink import RerunSink
 from touchanything.devices.errors import UserError
 from touchanything.devices.rate_meter import RateMeter, StageMeans
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
@@ -30,7 +31,8 @@ RECENT_FRAMES = 64
 
 class EngineSession:
     """Subclasses feed `submit(snapshot)` from their source thread and provide `truth_of`, `playback`
-    and `source_rows`. `engine` None (its model failed to load) still shows cameras and measurements."""
+    and `source_rows`. `engine` None (its model failed to load) still shows cameras and measurements.
+    `rerun`, when set before `start`, gets every snapshot and prediction (and is closed after the engine)."""
 
     def __init__(self, engine: StreamingEngine | None, choice: ModelChoice, message: str = "") -> None:
         self.views = tuple(VIEW_NAMES)
@@ -50,6 +52,7 @@ class EngineSession:
         self._loading = False
         self._model = model_label(choice, engine) if engine is not None else "no model"
         self.live = LiveEngine(engine, on_prediction=self._on_prediction) if engine is not None else None
+        self.rerun: RerunSink | None = None
 
     def truth_of(self, snapshot: Snapshot) -> np.ndarray | None:
         """(2, 21, 21) measured pressure of the snapshot's frame, or None."""
@@ -72,6 +75,8 @@ class EngineSession:
                 self.live.stop()
             except Exception as exc:  # shown to the user; the session ends either way
                 self.message = f"engine stopped with an error: {exc}"
+        if self.rerun is not None:
+            self.rerun.close()
 
     def submit(self, snapshot: Snapshot, predict: bool = True) -> None:
         """Source thread: show the snapshot and hand it (with only the views switched on) to the engine;
@@ -84,6 +89,8 @@ class EngineSession:
                 self._recent.pop(next(iter(self._recent)))
         self.frames.tick()
         self._stages.add(snapshot.stage_ms)
+        if self.rerun is not None:
+            self.rerun.observe(snapshot, truth)
         if self.live is not None and not predict:
             self.live.skip()
         elif self.live is not None:
@@ -95,7 +102,7 @@ class EngineSession:
         with self._lock:
             if prediction.frame_index not in self._recent:
                 return
-            truth = self._recent[prediction.frame_index][1]
+            snapshot, truth = self._recent[prediction.frame_index]
             self._prediction = (prediction, truth)
             self._predictions.tick()
             self._stages.add(prediction.timings_ms)
@@ -106,6 +113,9 @@ class EngineSession:
                 rolling = self.metrics.rolling()
                 self._history["volumetric_iou"].append(rolling["volumetric_iou"])
                 self._history["contact_iou"].append(rolling["contact_iou"])
+            if self.rerun is not None:
+                metrics = (self.metrics.rolling(), self.metrics.cumulative()) if self._truth_seen else (None, None)
+                self.rerun.predicted(prediction, snapshot, truth, *metrics)
 
     def restart(self) -> None:
         """Forget the window, the pending pairs and the metrics (after a seek or a new session)."""

@@ -9,7 +9,14 @@ import numpy as np
 
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_raw_episodes, is_plain_video, open_episode
+from touchanything.devices.episodes.episode_loader import (
+    episode_exists,
+    find_hdf5_files,
+    find_raw_episodes,
+    is_plain_video,
+    open_episode,
+)
+from touchanything.devices.episodes.lerobot_episode import find_lerobot_episodes
 from touchanything.devices.errors import DataError, UserError
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 from touchanything.devices.tactile_layout import TactileLayout
@@ -76,11 +83,12 @@ def _problem_lines(problems: list[str], indent: str, limit: int | None = None) -
 
 def dataset_lines(root: Path) -> list[str]:
     """One line per trajectory under a dataset root (its first problems), the total and the split."""
-    raw, hdf5 = find_raw_episodes(root), find_hdf5_files(root)
-    if not raw and not hdf5:
-        raise UserError(f"{root}: no episodes found (raw folders with chest.mp4, or .hdf5 files)")
-    lines, total = [f"dataset   {root}: {len(raw)} raw episode(s), {len(hdf5)} HDF5 file(s)"], 0
-    for path in raw + hdf5:
+    raw, hdf5, lerobot = find_raw_episodes(root), find_hdf5_files(root), find_lerobot_episodes(root)
+    if not raw and not hdf5 and not lerobot:
+        raise UserError(f"{root}: no episodes found (raw folders with chest.mp4, .hdf5 files, or a LeRobot dataset)")
+    found = f"{len(raw)} raw episode(s), {len(hdf5)} HDF5 file(s)" + (f", {len(lerobot)} LeRobot episode(s)" if lerobot else "")
+    lines, total = [f"dataset   {root}: {found}"], 0
+    for path in raw + hdf5 + lerobot:
         try:
             with open_episode(path) as ep:
                 total += ep.num_frames
@@ -97,7 +105,7 @@ def dataset_lines(root: Path) -> list[str]:
     if split_path.exists():
         try:
             split = read_split(split_path)
-            missing = sum(not p.exists() for key in SPLIT_KEYS for p in split[key])
+            missing = sum(not episode_exists(p) for key in SPLIT_KEYS for p in split[key])
             lines.append("split     " + ", ".join(f"{k} {len(split[k])}" for k in SPLIT_KEYS)
                          + (f"; {missing} listed file(s) missing" if missing else ""))
         except DataError as exc:

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.devices.camera_pose.estimator import STAGE
+from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.rig.replay import ReplaySource
 from touchanything.devices.snapshot import Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
@@ -20,6 +22,7 @@ from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.comparison_video import write_comparison_video
 from touchanything.viz.contact import hand_contact
 from touchanything.viz.replay_frame import ReplayFrameRenderer, metric_text
+from touchanything.viz.rerun_recording import RerunRecording
 
 
 @dataclass
@@ -88,17 +91,20 @@ class ReplaySummary:
 
 
 def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: ReplaySummary,
-                  progress: Callable[[int], None] = lambda frame: None) -> Iterator[np.ndarray]:
-    """Yield comparison frames for every frame of the source's episode (a ReplaySource with speed None:
-    every frame is processed); the source is closed at the end."""
+                  progress: Callable[[int], None] = lambda frame: None, renderer: ReplayFrameRenderer | None = None,
+                  rerun: RerunRecording | None = None) -> Iterator[np.ndarray | None]:
+    """Yield, for every frame of the source's episode (a ReplaySource with speed None: every frame is
+    processed), its comparison frame drawn by `renderer` (None: nothing is drawn, None is yielded) and log
+    it to `rerun` when given; the source is closed at the end."""
     episode = source.episode
     gt = None
     if episode.pressure is not None:
         gt = ground_truth_for_metrics(episode.pressure.grids, bool(episode.pressure.attrs.get("normalized", False)))
     bend = TactileLayout.default().bend
     metrics = RunningMetrics(bend) if gt is not None else None
-    renderer = ReplayFrameRenderer(episode.num_frames, bend)
     engine.reset()
+    if rerun is not None:
+        log_episode_videos(rerun, episode, source.config.views)
     latest: Prediction | None = None
     with contextlib.closing(source):
         for snapshot in source:
@@ -117,14 +123,42 @@ def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: Replay
                     metrics.add(shown, truth)
                     summary.add_lamps(hand_contact(shown, bend), hand_contact(truth, bend))
             summary.frames += 1
+            if rerun is not None:
+                _log_frame(rerun, episode, snapshot, truth, latest if shown is not None else None, metrics, bend)
             progress(snapshot.frame_index)
-            yield renderer.render(snapshot, truth, shown, latest, metrics)
+            yield None if renderer is None else renderer.render(snapshot, truth, shown, latest, metrics)
     summary.metrics = metrics.cumulative() if metrics is not None else None
 
 
-def export_replay(source: ReplaySource, engine: StreamingEngine, out: Path,
-                  progress: Callable[[int], None] = lambda frame: None) -> ReplaySummary:
-    """Write the comparison video of the source's whole episode to `out` (H.264 MP4); return the summary."""
+def log_episode_videos(rerun: RerunRecording, episode: Episode, views: tuple[str, ...]) -> None:
+    """The episode's own MP4 files of `views` as video assets (the other views go frame by frame)."""
+    videos = {v: s.path for v, s in episode.views.items() if v in views and type(s) is VideoReader and s.path.suffix == ".mp4"}
+    rerun.log_videos(videos, episode.num_frames, episode.timestamps_us / 1e6,
+                     {v: (episode.views[v].width, episode.views[v].height) for v in videos})
+
+
+def _log_frame(rerun: RerunRecording, episode: Episode, snapshot: Snapshot, truth: np.ndarray | None,
+               prediction: Prediction | None, metrics: RunningMetrics | None, bend: np.ndarray) -> None:
+    """One replayed frame into the recording: what the episode holds, and the prediction of this frame."""
+    time_s = float(episode.timestamps_us[snapshot.frame_index]) / 1e6
+    rerun.log_observation(snapshot.frame_index, time_s, snapshot.images, snapshot.joints, snapshot.joints_valid, truth,
+                          hand_contact(truth, bend), snapshot.trackers)
+    if prediction is not None:
+        rerun.log_prediction(snapshot.frame_index, time_s, prediction.pressure, hand_contact(prediction.pressure, bend),
+                             snapshot.joints, snapshot.joints_valid, truth, prediction.latency_ms,
+                             prediction.timings_ms.get("total"), metrics and metrics.rolling(), metrics and metrics.cumulative())
+
+
+def export_replay(source: ReplaySource, engine: StreamingEngine, out: Path | None,
+                  progress: Callable[[int], None] = lambda frame: None, hand3d: bool = False,
+                  rerun: RerunRecording | None = None) -> ReplaySummary:
+    """Write the comparison video of the source's whole episode to `out` (H.264 MP4; None: no video) with the
+    3D hands panel when `hand3d`, and the Rerun recording when given; return the summary."""
     summary = ReplaySummary()
-    write_comparison_video(out, replay_frames(source, engine, summary, progress))
+    if out is None:
+        for _ in replay_frames(source, engine, summary, progress, rerun=rerun):
+            pass
+        return summary
+    renderer = ReplayFrameRenderer(source.episode.num_frames, TactileLayout.default().bend, hand3d)
+    write_comparison_video(out, replay_frames(source, engine, summary, progress, renderer, rerun))
     return summary

@@ -9,8 +9,10 @@ from tqdm import tqdm
 
 from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, model_label
 from touchanything.app.sessions.episode_summary import episode_lines
-from touchanything.app.sessions.replay_export import ReplaySummary, export_replay
+from touchanything.app.sessions.replay_export import ReplaySummary, export_replay, log_episode_videos
 from touchanything.app.sessions.replay_session import ReplaySession
+from touchanything.app.sessions.rerun_output import episode_name, finish, open_recording, session_properties
+from touchanything.app.sessions.rerun_sink import RerunSink
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import is_plain_video, open_episode
 from touchanything.devices.errors import UserError
@@ -18,35 +20,48 @@ from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.dashboard.dashboard import Dashboard
 from touchanything.viz.display import display_problem
+from touchanything.viz.rerun_recording import RerunTarget
 
 
-def replay_to_video(path: Path, choice: ModelChoice, views: tuple[str, ...], out: Path) -> ReplaySummary:
-    """Export one episode; prints the episode, the summary and where the video is."""
-    if out.suffix.lower() != ".mp4":
+def replay_to_video(path: Path, choice: ModelChoice, views: tuple[str, ...], out: Path | None, hand3d: bool = False,
+                    rerun: RerunTarget | None = None) -> ReplaySummary:
+    """Export one episode into the comparison video `out` (None: none; `hand3d`: with the 3D hands panel) and
+    the Rerun recording `rerun`; prints the episode, the summary and where the outputs are."""
+    if out is not None and out.suffix.lower() != ".mp4":
         raise UserError(f"{out}: the video must be an .mp4 file")
     engine = build_engine(choice, views)
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
+        if out is not None:
+            out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"{out.parent}: cannot create the output folder ({exc.strerror})") from None
     with open_episode(path) as episode:
         _require_ego(path, episode)
         source = ReplaySource(episode, ReplayConfig(speed=None, views=views, pose_source=pose_source_for(episode)))
         print("\n".join(episode_lines(episode)))
-        with tqdm(total=episode.num_frames, unit="frame", desc="replay") as bar:
-            summary = export_replay(source, engine, out, lambda frame: bar.update(1))
+        recording = rerun and open_recording(rerun, f"replay {episode_name(episode)}", session_properties(choice, engine, episode))
+        try:
+            with tqdm(total=episode.num_frames, unit="frame", desc="replay") as bar:
+                summary = export_replay(source, engine, out, lambda frame: bar.update(1), hand3d, recording)
+        except BaseException:
+            if recording is not None:
+                recording.close()  # what was logged stays readable
+            raise
     print(f"model     {model_label(choice, engine)}, {engine.runtime.capture}")
     print("\n".join(summary.lines()))
-    print(f"video     {out}")
+    if out is not None:
+        print(f"video     {out}")
+    if recording is not None:
+        finish(recording)
     return summary
 
 
 def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...], max_frames: int | None = None,
-                        screenshot: Path | None = None) -> Dashboard:
+                        screenshot: Path | None = None, rerun: RerunTarget | None = None) -> Dashboard:
     """Play the episode in the dashboard until its window closes (or `max_frames` were rendered; then
     `screenshot` is saved); returns the closed dashboard (its stats, screenshots and session). A model
     that fails to load is reported in the dashboard, which then shows the cameras and the measured
-    pressure only."""
+    pressure only. `rerun`: everything shown also goes into that Rerun recording."""
     with open_episode(path) as episode:
         _require_ego(path, episode)
         if problem := display_problem():
@@ -58,8 +73,17 @@ def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...],
             print(message)
         session = ReplaySession(episode, engine, choice, message, pose_source_for(episode))
         session.set_views(views)
+        recording = rerun and open_recording(rerun, f"replay {episode_name(episode)}", session_properties(choice, engine, episode))
+        if recording is not None:
+            log_episode_videos(recording, episode, VIEW_NAMES)
+            session.rerun = RerunSink(recording, session.bend, lambda snapshot: episode.timestamps_us[snapshot.frame_index] / 1e6)
         dashboard = Dashboard(session.start())
-        dashboard.run(max_frames, screenshot)
+        try:
+            dashboard.run(max_frames, screenshot)
+        finally:
+            if recording is not None:
+                print(session.rerun.line())
+                finish(recording, keep_serving=False)
         return dashboard
 
 

@@ -6,8 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.hdf5_episode import open_hdf5_episode
+from touchanything.devices.episodes.lerobot_episode import find_lerobot_episodes, open_lerobot_episode
+from touchanything.devices.episodes.lerobot_format import is_lerobot_root, parse_address
 from touchanything.devices.episodes.raw_episode import is_raw_episode, open_raw_episode
 from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.errors import DataError
@@ -22,12 +25,16 @@ def is_hdf5_path(path: Path) -> bool:
 
 
 def open_episode(path: Path) -> Episode:
-    """Open a raw episode folder, an HDF5 trajectory file, or any other file as a plain video
-    (`open_video_episode`)."""
+    """Open a raw episode folder, an HDF5 trajectory file, an episode of a LeRobot dataset (`ROOT/episode_NNNNNN`,
+    or the dataset's root when it holds one episode), or any other file as a plain video (`open_video_episode`)."""
     path = Path(path)
+    if (address := parse_address(path)) is not None and not path.exists():
+        return open_lerobot_episode(*address)
     if not path.exists():
         raise DataError(path, None, "not found")
     if path.is_dir():
+        if is_lerobot_root(path):
+            return _only_episode(path)
         if not is_raw_episode(path):
             raise DataError(path, None, "not an episode folder (no chest.mp4 or jq_pressure.json)")
         return open_raw_episode(path)
@@ -37,6 +44,20 @@ def open_episode(path: Path) -> Episode:
         return open_video_episode(path)
     except DataError as exc:
         raise DataError(path, None, f"not an episode folder or .hdf5 file, and {exc.problem}") from None
+
+
+def _only_episode(root: Path) -> Episode:
+    """The episode of a LeRobot dataset that holds one; a dataset of several names how to open one."""
+    episodes = find_lerobot_episodes(root)
+    if len(episodes) != 1:
+        raise DataError(root, None, f"a LeRobot dataset of {len(episodes)} episodes; open one as "
+                        f"{fmt.episode_address(root, 0)} (… {fmt.episode_address(root, max(len(episodes) - 1, 0)).name})")
+    return open_episode(episodes[0])
+
+
+def episode_exists(path: Path) -> bool:
+    """`path` exists, or names an episode of a LeRobot dataset (`ROOT/episode_NNNNNN`, which is no file)."""
+    return Path(path).exists() or parse_address(Path(path)) is not None
 
 
 def is_plain_video(episode: Episode) -> bool:

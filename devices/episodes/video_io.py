@@ -142,9 +142,13 @@ class VideoWriter:
     a crash of the machine; `close(sync=True)` does it after the last fragment.
     """
 
-    def __init__(self, path: Path, fps: int = 30, crf: int = 20, preset: str = "veryfast") -> None:
+    def __init__(self, path: Path, fps: int = 30, crf: int = 20, preset: str = "veryfast", fragmented: bool = True,
+                 codec_options: dict[str, str] | None = None) -> None:
+        """`fragmented` False: a plain MP4 (index at the end; readable only once closed). `codec_options`: more
+        libx264 options (e.g. {"g": "2", "bf": "0"}), over the defaults (key frame every second)."""
         self.path = Path(path)
         self.fps, self.crf, self.preset = fps, crf, preset
+        self.fragmented, self.codec_options = fragmented, codec_options or {}
         self._container: av.container.OutputContainer | None = None
         self._stream = None
         self._sync_fd: int | None = None
@@ -153,11 +157,11 @@ class VideoWriter:
     def _open(self, width: int, height: int) -> None:
         if width % 2 or height % 2:
             raise ValueError(f"H.264 needs even frame sizes, got {width}×{height}")
-        options = {"movflags": "frag_keyframe+empty_moov+default_base_moof", "flush_packets": "1"}
+        options = {"movflags": "frag_keyframe+empty_moov+default_base_moof", "flush_packets": "1"} if self.fragmented else {}
         self._container = av.open(str(self.path), "w", format="mp4", options=options)
         self._stream = self._container.add_stream("libx264", rate=self.fps)
         self._stream.width, self._stream.height, self._stream.pix_fmt = width, height, "yuv420p"
-        self._stream.options = {"crf": str(self.crf), "preset": self.preset, "g": str(self.fps)}
+        self._stream.options = {"crf": str(self.crf), "preset": self.preset, "g": str(self.fps), **self.codec_options}
 
     def write(self, rgb: np.ndarray) -> None:
         """Append one (H, W, 3) uint8 RGB frame."""

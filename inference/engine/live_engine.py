@@ -116,7 +116,7 @@ class LiveEngine:
             return calls, snapshot
 
     def _run(self) -> None:
-        _lower_priority(ENGINE_NICENESS)
+        lower_priority(ENGINE_NICENESS)
         try:
             while (taken := self._take()) is not None:
                 calls, snapshot = taken
@@ -133,7 +133,7 @@ class LiveEngine:
             self.error = exc
 
 
-def _lower_priority(niceness: int) -> None:
+def lower_priority(niceness: int) -> None:
     """Raise the calling thread's nice value (Linux: per thread); silently kept where not permitted."""
     try:
         os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), niceness)

@@ -1,0 +1,56 @@
+"""`touchanything export-lerobot ROOT OUT`: raw episode folders and HDF5 trajectories as a LeRobot v3.0 dataset
+(the three views as video features, both hands' joints, the 21×21 maps per hand, the tracker poses, the task text,
+the fps and every frame's capture time; docs/data_formats.md, "LeRobot datasets")."""
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from tqdm import tqdm
+
+from touchanything.devices.episodes.lerobot_export import export_lerobot, source_episodes
+from touchanything.devices.errors import UserError
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser("export-lerobot", help="export episodes as a LeRobot v3.0 dataset")
+    parser.add_argument("root", type=Path, help="dataset root (raw episode folders and/or .hdf5 files), or one episode")
+    parser.add_argument("out", type=Path, help="the dataset folder to write (meta/, data/, videos/)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing OUT (default: refuse)")
+    parser.set_defaults(run=run)
+
+
+def check_output(root: Path, out: Path, overwrite: bool) -> None:
+    """Before any work: OUT is neither ROOT nor inside it (nor ROOT inside OUT), does not exist unless
+    `overwrite`, and its folder is writable."""
+    source, target = root.resolve(), out.resolve()
+    if target == source or source in target.parents or target in source.parents:
+        raise UserError(f"{out}: the output would overlap the input {root}; choose a folder outside it")
+    if out.exists() and not overwrite:
+        raise UserError(f"{out}: exists; pass --overwrite to replace it")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{out.parent}: cannot create the output folder ({exc.strerror})") from None
+    if not os.access(out.parent, os.W_OK | os.X_OK):
+        raise UserError(f"{out.parent}: not writable")
+
+
+def run(args: argparse.Namespace) -> int:
+    if not args.root.exists():
+        raise UserError(f"{args.root}: not found")
+    check_output(args.root, args.out, args.overwrite)
+    sources = source_episodes(args.root)
+    if not sources:
+        raise UserError(f"{args.root}: no episodes found (raw folders with chest.mp4, or .hdf5 files)")
+    with tqdm(total=len(sources), unit="episode", desc="export") as bar:
+        summary = export_lerobot(args.root, args.out, args.overwrite, lambda path: bar.update(1))
+    size = sum(p.stat().st_size for p in args.out.rglob("*") if p.is_file()) / 1e6
+    print(f"exported  {summary.episodes} episodes, {summary.frames} frames, views {', '.join(summary.views)}; "
+          f"{size:.1f} MB in {args.out}")
+    for problem in summary.skipped:
+        print(f"skipped   {problem}")
+    print(f"read it   touchanything info {args.out}; replay {args.out}/episode_000000; "
+          f"LeRobotDataset(repo_id=..., root=\"{args.out}\")")
+    return 1 if summary.skipped else 0

@@ -1,0 +1,118 @@
+"""The `--rerun FILE.rrd` and `--rerun-serve [PORT]` options of demo, replay, live and eval: the output checked
+before any work, the recording opened, a served recording kept up until Ctrl-C, and several recordings
+(eval: one per trajectory) merged into one file."""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Mapping
+from pathlib import Path
+
+from touchanything.app.sessions.engine_choice import ModelChoice, model_label
+from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.episodes.episode_loader import is_plain_video
+from touchanything.devices.errors import UserError
+from touchanything.inference.engine.streaming_engine import StreamingEngine
+from touchanything.viz.rerun_recording import RerunRecording, RerunTarget, partial_path
+
+DEFAULT_WEB_PORT = 9090
+LIVE_IMAGE_SCALE = 0.5
+"""The live rig's camera frames go into a recording at half their size (JPEG): a quarter of the bytes and of
+the encoding time, which the live path's CPU needs more (docs/rerun.md, "Costs")."""
+
+
+def add_rerun_arguments(parser: argparse.ArgumentParser, serve: bool = True) -> None:
+    """--rerun, --overwrite and (`serve`) --rerun-serve."""
+    parser.add_argument("--rerun", type=Path, metavar="FILE.rrd",
+                        help="also write a Rerun recording of the session (cameras, 3D hands with the pressure painted on "
+                             "them, measured and predicted maps, contact, official metrics, latency, trackers); open it "
+                             "with `rerun FILE.rrd` (default: none)")
+    if serve:
+        parser.add_argument("--rerun-serve", type=int, nargs="?", const=DEFAULT_WEB_PORT, metavar="PORT",
+                            help=f"also serve the recording to a web viewer at http://localhost:PORT (default port "
+                                 f"{DEFAULT_WEB_PORT}; default: not served)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --rerun file (default: refuse)")
+
+
+def check_rrd_output(path: Path, overwrite: bool) -> None:
+    """Before any work: `path` ends in .rrd, is not a folder, does not exist unless `overwrite`, and its folder
+    exists (it is created) and is writable. UserError (one line) otherwise."""
+    if path.suffix.lower() != ".rrd":
+        raise UserError(f"{path}: a Rerun recording must be an .rrd file")
+    if path.is_dir():
+        raise UserError(f"{path}: is a folder; give the .rrd file to write")
+    if path.exists() and not overwrite:
+        raise UserError(f"{path}: exists; pass --overwrite to replace it")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{path.parent}: cannot create the output folder ({exc.strerror})") from None
+    if not os.access(path.parent, os.W_OK | os.X_OK):
+        raise UserError(f"{path.parent}: not writable")
+
+
+def rerun_target(args: argparse.Namespace, image_scale: float = 1.0) -> RerunTarget | None:
+    """The target of the command's --rerun / --rerun-serve options (None: neither), checked."""
+    if args.rerun is None and args.rerun_serve is None:
+        return None
+    if args.rerun is not None:
+        check_rrd_output(args.rerun, args.overwrite)
+    if args.rerun_serve is not None and not 0 < args.rerun_serve < 65536:
+        raise UserError(f"--rerun-serve: {args.rerun_serve} is not a port number (1–65535)")
+    return RerunTarget(args.rerun, args.rerun_serve, image_scale=image_scale)
+
+
+def open_recording(target: RerunTarget, name: str, properties: Mapping[str, str]) -> RerunRecording:
+    """Open the recording; says where it is served. A port already in use is a UserError."""
+    try:
+        recording = RerunRecording(target, name, properties)
+    except (OSError, RuntimeError, ValueError) as exc:
+        raise UserError(f"cannot start the Rerun recording: {exc}") from None
+    if recording.url:
+        print(f"rerun     web viewer at {recording.url}", flush=True)
+    return recording
+
+
+def finish(recording: RerunRecording, keep_serving: bool = True) -> None:
+    """Close the recording (the file is renamed into place) and say where it is; with `keep_serving`, a served
+    recording stays up until Ctrl-C first (a headless run: the viewer can still look at it)."""
+    if recording.url and keep_serving:
+        print(f"rerun     still serving at {recording.url}; Ctrl-C to stop", flush=True)
+        try:
+            while True:
+                time.sleep(3600)
+        except KeyboardInterrupt:
+            print("rerun     stopped serving")
+    recording.close()
+    if recording.target.rrd is not None:
+        print(f"rerun     {recording.target.rrd} (open with: rerun {recording.target.rrd})")
+
+
+def episode_name(episode: Episode) -> str:
+    """"Scene/task/trajectory", or the file name of a plain video."""
+    return episode.path.name if is_plain_video(episode) else f"{episode.scene}/{episode.task}/{episode.trajectory_id}"
+
+
+def session_properties(choice: ModelChoice, engine: StreamingEngine | None, episode: Episode | None = None) -> dict[str, str]:
+    """What a recording says about itself: the model and, for a replay, the episode."""
+    properties = {"model": model_label(choice, engine) if engine is not None else "no model"}
+    if episode is not None:
+        properties |= {"episode": str(episode.path), "frames": str(episode.num_frames), "fps": f"{episode.fps:g}"}
+    return properties
+
+
+def merge_recordings(parts: list[Path], out: Path) -> None:
+    """Merge .rrd files (each its own recording) into `out` with Rerun's own `rrd merge`; written under a
+    temporary name and renamed; the parts are removed."""
+    partial = partial_path(out)
+    command = [sys.executable, "-m", "rerun_cli", "rrd", "merge", *map(str, parts), "-o", str(partial)]
+    result = subprocess.run(command, capture_output=True, text=True, env={**os.environ, "RUST_LOG": "warn"})
+    if result.returncode != 0:
+        partial.unlink(missing_ok=True)
+        raise UserError(f"{out}: merging the recordings failed ({result.stderr.strip().splitlines()[-1:]})")
+    os.replace(partial, out)
+    for part in parts:
+        part.unlink(missing_ok=True)

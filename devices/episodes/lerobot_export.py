@@ -1,0 +1,134 @@
+"""A dataset root (raw episode folders and HDF5 trajectories) or one episode exported as a LeRobot v3.0 dataset:
+checked before any work, written into a temporary folder beside the output and renamed into place when
+complete. Each episode's scene, task and trajectory id and its pressure attributes go into the episodes
+metadata, so that reading the export back gives the same Episode; a `split.json` of the source becomes one over
+the exported episodes (`ROOT/episode_NNNNNN`), so `eval --data OUT` evaluates the export."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from touchanything.devices.episodes import lerobot_format as fmt
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
+from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_raw_episodes, is_hdf5_path, open_episode
+from touchanything.devices.episodes.lerobot_writer import LeRobotWriter
+from touchanything.devices.errors import DataError, UserError
+
+
+@dataclass
+class ExportSummary:
+    """episodes / frames written, the views exported, sources left out with the reason."""
+
+    episodes: int = 0
+    frames: int = 0
+    views: tuple[str, ...] = ()
+    skipped: list[str] = field(default_factory=list)
+
+
+def source_episodes(root: Path) -> list[Path]:
+    """The raw folders and HDF5 files under `root` (or `root` itself when it is one episode)."""
+    root = Path(root)
+    if root.is_file():
+        return [root] if is_hdf5_path(root) else []
+    return find_raw_episodes(root) + find_hdf5_files(root)
+
+
+def task_text(task: str) -> str:
+    """A task id as LeRobot task text: "slide_box_cardboard" → "slide box cardboard"."""
+    return task.replace("_", " ").strip() or "unknown task"
+
+
+def _source_key(path: Path) -> Path:
+    return path.resolve().with_suffix("") if is_hdf5_path(path) else path.resolve()
+
+
+def _plan(sources: list[Path], summary: ExportSummary) -> tuple[list[Path], tuple[str, ...], dict, int]:
+    """The episodes that can go together (the views every one has, one size per view, one frame rate), the views,
+    their sizes and the frame rate; the others are listed in `summary.skipped`."""
+    shape: dict[Path, tuple[dict, float]] = {}
+    for path in sources:
+        try:
+            with open_episode(path) as episode:
+                if episode.num_frames == 0 or "ego" not in episode.views:
+                    summary.skipped.append(f"{path}: {'no frames' if episode.num_frames == 0 else 'no ego (chest) video'}")
+                    continue
+                shape[path] = ({v: (s.width, s.height) for v, s in episode.views.items()}, episode.fps)
+        except DataError as exc:
+            summary.skipped.append(str(exc))
+    if not shape:
+        return [], (), {}, 0
+    first = next(iter(shape.values()))
+    views = tuple(v for v in first[0] if all(v in sizes for sizes, _ in shape.values()))
+    keep = []
+    for path, (sizes, fps) in shape.items():
+        if fps != first[1] or any(sizes[v] != first[0][v] for v in views):
+            summary.skipped.append(f"{path}: {fps:g} fps / sizes {sizes} differ from the first episode's "
+                                   f"({first[1]:g} fps, {first[0]}); a dataset has one of each")
+        else:
+            keep.append(path)
+    return keep, views, {v: first[0][v] for v in views}, round(first[1])
+
+
+def _extra(episode: Episode) -> dict[str, str]:
+    attrs = episode.pressure.attrs if episode.pressure is not None else {}
+    return {"scene": episode.scene, "task_name": episode.task, "trajectory_id": episode.trajectory_id,
+            "source": str(episode.path), "pressure_attrs": json.dumps(attrs)}
+
+
+def _write_split(root: Path, folder: Path, written: list[Path]) -> None:
+    """The source's split.json over the exported episodes (entries not exported are left out)."""
+    split_path = (root if root.is_dir() else root.parent) / SPLIT_FILE
+    if not split_path.is_file():
+        return
+    index = {_source_key(path): k for k, path in enumerate(written)}
+    split = read_split(split_path)
+    out = {key: [fmt.episode_address(Path("."), index[_source_key(p)]).name for p in split[key] if _source_key(p) in index]
+           for key in SPLIT_KEYS}
+    (folder / SPLIT_FILE).write_text(json.dumps(out, indent=1) + "\n")
+
+
+def export_lerobot(root: Path, out: Path, overwrite: bool = False,
+                   on_episode: Callable[[Path], None] = lambda path: None) -> ExportSummary:
+    """Export every episode under `root` into the LeRobot dataset `out`; `on_episode` after each source."""
+    root, out = Path(root), Path(out)
+    sources = source_episodes(root)
+    if not sources:
+        raise UserError(f"{root}: no episodes found (raw folders with chest.mp4, or .hdf5 files)")
+    summary = ExportSummary()
+    paths, summary.views, sizes, fps = _plan(sources, summary)
+    if not paths:
+        raise UserError(f"{root}: none of the {len(sources)} episodes can be exported ({summary.skipped[0]})")
+    partial = out.with_name(f".{out.name}.partial-{os.getpid()}")
+    shutil.rmtree(partial, ignore_errors=True)
+    writer = LeRobotWriter(partial, fps, summary.views, sizes)
+    try:
+        for path in paths:
+            with open_episode(path) as episode:
+                writer.add(episode, task_text(episode.task), _extra(episode))
+            summary.episodes, summary.frames = summary.episodes + 1, summary.frames + episode.num_frames
+            on_episode(path)
+        writer.close()
+        _write_split(root, partial, paths)
+        _replace(partial, out, overwrite)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
+    return summary
+
+
+def _replace(partial: Path, out: Path, overwrite: bool) -> None:
+    """Rename the finished export into place (an existing output, with `overwrite`, only once it is done)."""
+    if out.exists():
+        if not overwrite:
+            raise UserError(f"{out}: appeared while exporting; pass --overwrite to replace it")
+        old = out.with_name(f".{out.name}.old-{os.getpid()}")
+        os.replace(out, old)
+        os.replace(partial, out)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(partial, out)

@@ -1,0 +1,223 @@
+"""Episodes written as a LeRobot v3.0 dataset (`touchanything export-lerobot`; the format in
+`devices.episodes.lerobot_format`, the features in docs/data_formats.md).
+
+Every episode goes whole into the current data file (parquet, one row per frame) and, per view, the current video
+file (H.264, yuv420p, a key frame every 2 frames and no B-frames, so that frame i of the file is presented at
+exactly i / fps and any frame decodes quickly); a file is closed and the next begun when it passes LeRobot's size
+(100 MB data, 200 MB video). Columns carry the Hugging Face `datasets` feature types in the schema's metadata (a
+hand's map is an Array3D (2, 21, 21), a flag pair a length-2 list), as `datasets.Dataset.to_parquet` writes them.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from touchanything.devices.episodes import lerobot_format as fmt
+from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.episodes.lerobot_stats import aggregate, as_json, feature_stats, sample_indices, video_stats
+from touchanything.devices.episodes.video_io import VideoWriter
+from touchanything.devices.snapshot import TRACKER_ROLES
+
+VIDEO_CRF = 20
+VIDEO_OPTIONS = {"g": "2", "bf": "0"}
+
+
+def frame_features(episode: Episode) -> dict[str, np.ndarray]:
+    """The non-video features of every frame of `episode`, in the export's hand order [left, right]."""
+    t = episode.num_frames
+    joints = np.zeros((t, 2, 21, 3), np.float32) if episode.wilor is None else episode.wilor.joints.astype(np.float32)
+    valid = np.zeros((t, 2), bool) if episode.wilor is None else episode.wilor.valid
+    tactile = np.full((t, 2, 21, 21), np.nan, np.float32) if episode.pressure is None else episode.pressure.grids
+    poses = np.zeros((t, len(TRACKER_ROLES), 7), np.float32)
+    trackers_valid = np.zeros((t, len(TRACKER_ROLES)), bool)
+    if episode.trackers is not None:
+        poses, trackers_valid = episode.trackers.poses.astype(np.float32), episode.trackers.valid
+    return {fmt.JOINTS: joints, fmt.JOINTS_VALID: valid, fmt.TACTILE: tactile.astype(np.float32), fmt.TRACKERS: poses,
+            fmt.TRACKERS_VALID: trackers_valid, fmt.CAPTURE_TIME: episode.timestamps_us.astype(np.int64)}
+
+
+def _dtype(values: np.ndarray) -> str:
+    return {"b": "bool", "i": "int64", "f": "float32"}[values.dtype.kind]
+
+
+def _hf_feature(dtype: str, shape: tuple[int, ...]) -> dict:
+    """A feature in the dictionary form of Hugging Face `datasets` 4 (`Features.to_dict()`), as LeRobot makes it."""
+    if shape == (1,):
+        return {"dtype": dtype, "_type": "Value"}
+    if len(shape) == 1:
+        return {"feature": {"dtype": dtype, "_type": "Value"}, "length": shape[0], "_type": "List"}
+    return {"shape": list(shape), "dtype": dtype, "_type": f"Array{len(shape)}D"}
+
+
+def _column(values: np.ndarray) -> pa.Array:
+    """(frames, *shape) values as the arrow column of their `datasets` type: scalars, fixed-size lists (1-D) or
+    nested lists (ArrayND)."""
+    flat = pa.array(values.reshape(-1))
+    if values.ndim == 1:
+        return flat
+    if values.ndim == 2:
+        return pa.FixedSizeListArray.from_arrays(flat, values.shape[1])
+    for size in reversed(values.shape[1:]):
+        count = len(flat) // size
+        flat = pa.ListArray.from_arrays(pa.array(np.arange(count + 1, dtype=np.int32) * size), flat)
+    return flat
+
+
+@dataclass
+class _OpenFile:
+    """The data or video file being written: its chunk and file index, frames in it."""
+
+    chunk: int = 0
+    file: int = 0
+    frames: int = 0
+
+    def advance(self) -> None:
+        self.file, self.frames = (0, 0) if self.file + 1 == fmt.CHUNKS_SIZE else (self.file + 1, 0)
+        if self.file == 0:
+            self.chunk += 1
+
+
+@dataclass
+class LeRobotWriter:
+    """Write episodes with `add`, then `close()` for the metadata. `views`: the video features, each (width,
+    height) in `sizes`; every episode must have them all, at that size, at `fps`."""
+
+    folder: Path
+    fps: int
+    views: tuple[str, ...]
+    sizes: dict[str, tuple[int, int]]
+    episodes: list[dict] = field(default_factory=list)
+    tasks: dict[str, int] = field(default_factory=dict)
+    _stats: list[dict[str, dict]] = field(default_factory=list)
+    _frames: int = 0
+
+    def __post_init__(self) -> None:
+        self._data, self._data_writer = _OpenFile(), None
+        self._videos = {view: _OpenFile() for view in self.views}
+        self._video_writers: dict[str, VideoWriter] = {}
+
+    def add(self, episode: Episode, task: str, extra: dict[str, str]) -> None:
+        """Append one episode (its frames, videos, metadata and statistics); `extra`: more columns of its row in
+        the episodes metadata (strings)."""
+        index, frames = len(self.episodes), episode.num_frames
+        columns = {**self._index_columns(index, self.tasks.setdefault(task, len(self.tasks)), frames), **frame_features(episode)}
+        stats = {name: feature_stats(values) for name, values in columns.items()}
+        row = {"episode_index": index, "tasks": [task], "length": frames, "data/chunk_index": self._data.chunk,
+               "data/file_index": self._data.file, "dataset_from_index": self._frames, "dataset_to_index": self._frames + frames,
+               **extra}
+        self._write_data(columns)
+        for view in self.views:
+            row.update(self._write_video(view, episode, frames))
+            sample = np.stack([episode.views[view].read(i) for i in sample_indices(frames)])
+            stats[fmt.VIEW_FEATURES[view]] = video_stats(sample)
+        row.update({f"stats/{key}/{stat}": np.asarray(value).tolist() for key, values in stats.items()
+                    for stat, value in values.items()})
+        self.episodes.append(row)
+        self._stats.append(stats)
+        self._frames += frames
+
+    def _index_columns(self, index: int, task_index: int, frames: int) -> dict[str, np.ndarray]:
+        """LeRobot's own columns: time from the episode's start (exactly i / fps), indexes."""
+        return {"timestamp": (np.arange(frames) / self.fps).astype(np.float32),
+                "frame_index": np.arange(frames, dtype=np.int64), "episode_index": np.full(frames, index, np.int64),
+                "index": np.arange(self._frames, self._frames + frames, dtype=np.int64),
+                "task_index": np.full(frames, task_index, np.int64)}
+
+    def _write_data(self, columns: dict[str, np.ndarray]) -> None:
+        table = pa.table({name: _column(values) for name, values in columns.items()})
+        hf = {name: _hf_feature(_dtype(values), values.shape[1:] or (1,)) for name, values in columns.items()}
+        table = table.replace_schema_metadata({b"huggingface": json.dumps({"info": {"features": hf}}).encode()})
+        if self._data_writer is None:
+            path = self.folder / fmt.DATA_PATH.format(chunk_index=self._data.chunk, file_index=self._data.file)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._data_writer = pq.ParquetWriter(path, table.schema, compression="snappy")
+        self._data_writer.write_table(table)
+        self._data.frames += table.num_rows
+        if self._data_writer.file_handle is not None and self._data_writer.file_handle.tell() > fmt.DATA_FILE_MB * 1e6:
+            self._data_writer.close()
+            self._data_writer = None
+            self._data.advance()
+
+    def _write_video(self, view: str, episode: Episode, frames: int) -> dict:
+        """Append the episode's frames of `view` to its current video file; the episodes-metadata columns."""
+        at = self._videos[view]
+        writer = self._video_writers.get(view)
+        if writer is None:
+            path = self.folder / fmt.VIDEO_PATH.format(video_key=fmt.VIEW_FEATURES[view], chunk_index=at.chunk,
+                                                        file_index=at.file)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            writer = VideoWriter(path, self.fps, VIDEO_CRF, fragmented=False, codec_options=VIDEO_OPTIONS)
+            self._video_writers[view] = writer
+        source, blank = episode.views[view], None
+        for i in range(frames):
+            image = source.read(i)
+            if image is None:  # a frame the file no longer decodes: black, so that the times stay i / fps
+                image = blank = np.zeros((source.height, source.width, 3), np.uint8) if blank is None else blank
+            writer.write(image)
+        key = fmt.VIEW_FEATURES[view]
+        columns = {f"videos/{key}/chunk_index": at.chunk, f"videos/{key}/file_index": at.file,
+                   f"videos/{key}/from_timestamp": at.frames / self.fps,
+                   f"videos/{key}/to_timestamp": (at.frames + frames) / self.fps}
+        at.frames += frames
+        if writer.path.exists() and writer.path.stat().st_size > fmt.VIDEO_FILE_MB * 1e6:
+            writer.close()
+            del self._video_writers[view]
+            at.advance()
+        return columns
+
+    def close(self) -> None:
+        """Close the open files and write the metadata: info, stats, tasks, episodes."""
+        if self._data_writer is not None:
+            self._data_writer.close()
+        for writer in self._video_writers.values():
+            writer.close()
+        meta = self.folder / "meta"
+        meta.mkdir(parents=True, exist_ok=True)
+        episodes = pa.Table.from_pylist(self.episodes)
+        path = self.folder / fmt.EPISODES_PATH.format(chunk_index=0, file_index=0)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        episodes = episodes.append_column("meta/episodes/chunk_index", pa.array([0] * len(self.episodes), pa.int64()))
+        pq.write_table(episodes.append_column("meta/episodes/file_index", pa.array([0] * len(self.episodes), pa.int64())), path)
+        tasks = pa.table({"task_index": pa.array(list(self.tasks.values()), pa.int64()), "task": list(self.tasks)})
+        pq.write_table(tasks.replace_schema_metadata({b"pandas": json.dumps(_pandas_index("task", tasks)).encode()}),
+                       self.folder / fmt.TASKS_PATH)
+        stats = {key: aggregate([s[key] for s in self._stats]) for key in self._stats[0]} if self._stats else {}
+        (self.folder / fmt.STATS_PATH).write_text(json.dumps(as_json(stats), indent=1))
+        (self.folder / fmt.INFO_PATH).write_text(json.dumps(self.info(), indent=1))
+
+    def info(self) -> dict:
+        """`meta/info.json`."""
+        features = {}
+        for view in self.views:
+            width, height = self.sizes[view]
+            features[fmt.VIEW_FEATURES[view]] = {
+                "dtype": "video", "shape": [height, width, 3], "names": ["height", "width", "channels"],
+                "info": {"video.height": height, "video.width": width, "video.codec": "h264", "video.pix_fmt": "yuv420p",
+                         "video.is_depth_map": False, "video.fps": self.fps, "video.channels": 3, "has_audio": False}}
+        shapes = {fmt.JOINTS: [2, 21, 3], fmt.JOINTS_VALID: [2], fmt.TACTILE: [2, 21, 21],
+                  fmt.TRACKERS: [len(TRACKER_ROLES), 7], fmt.TRACKERS_VALID: [len(TRACKER_ROLES)], fmt.CAPTURE_TIME: [1]}
+        dtypes = {fmt.JOINTS_VALID: "bool", fmt.TRACKERS_VALID: "bool", fmt.CAPTURE_TIME: "int64"}
+        for name, shape in shapes.items():
+            features[name] = {"dtype": dtypes.get(name, "float32"), "shape": shape, "names": fmt.FEATURE_NAMES[name]}
+        for name in fmt.INDEX_FEATURES:
+            features[name] = {"dtype": "float32" if name == "timestamp" else "int64", "shape": [1], "names": None}
+        return {"codebase_version": fmt.CODEBASE_VERSION, "robot_type": fmt.ROBOT_TYPE,
+                "total_episodes": len(self.episodes), "total_frames": self._frames, "total_tasks": len(self.tasks),
+                "chunks_size": fmt.CHUNKS_SIZE,
+                "data_files_size_in_mb": fmt.DATA_FILE_MB, "video_files_size_in_mb": fmt.VIDEO_FILE_MB, "fps": self.fps,
+                "splits": {"train": f"0:{len(self.episodes)}"}, "data_path": fmt.DATA_PATH, "video_path": fmt.VIDEO_PATH,
+                "features": features}
+
+
+def _pandas_index(name: str, table: pa.Table) -> dict:
+    """The `pandas` schema metadata that makes column `name` the frame's index when pandas reads the file (LeRobot
+    reads `tasks.parquet` with pandas and takes a task's text from the index)."""
+    columns = [{"name": c, "field_name": c, "pandas_type": "unicode" if c == name else "int64",
+                "numpy_type": "object" if c == name else "int64", "metadata": None} for c in table.column_names]
+    return {"index_columns": [name], "column_indexes": [], "columns": columns, "creator": {"library": "pyarrow"},
+            "pandas_version": "2.2.0"}

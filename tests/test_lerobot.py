@@ -1,0 +1,185 @@
+"""LeRobot datasets: `export-lerobot` writes the v3.0 format, `open_episode` (and so replay, info, eval) reads it
+back and the community EgoTouch layout (v2.0, [right, left], ego only); the round trip of the bundled sample."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import av
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from conftest import write_episode
+from helpers.lerobot_community import write_community_dataset
+from touchanything.app.cli import main
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.errors import DataError
+from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
+from touchanything.devices.tactile_layout import TactileLayout
+
+SAMPLE = Path(__file__).resolve().parents[1] / "recordings" / "sample"
+NANO = Path(__file__).resolve().parents[1] / "models" / "nano" / "best_model.pth"
+
+
+@pytest.fixture
+def two_episodes(tmp_path: Path) -> Path:
+    root = tmp_path / "raw"
+    write_episode(root / "Home" / "pick_up_bottle" / "001", frames=12, seed=1)
+    write_episode(root / "Office" / "press_button" / "002", frames=9, seed=2)
+    return root
+
+
+def _same_episode(a, b, frames: list[int]) -> None:
+    assert (a.num_frames, a.fps, a.scene, a.task, a.trajectory_id) == (b.num_frames, b.fps, b.scene, b.task, b.trajectory_id)
+    assert np.array_equal(a.timestamps_us, b.timestamps_us) and a.view_names == b.view_names
+    np.testing.assert_array_equal(a.pressure.grids, b.pressure.grids)  # NaN where NaN, float32 exact
+    assert a.pressure.attrs == b.pressure.attrs
+    np.testing.assert_array_equal(a.wilor.joints, b.wilor.joints)
+    np.testing.assert_array_equal(a.wilor.valid, b.wilor.valid)
+    np.testing.assert_array_equal(a.trackers.poses, b.trackers.poses)
+    for view in a.view_names:
+        for i in frames:
+            diff = np.abs(a.views[view].read(i).astype(int) - b.views[view].read(i).astype(int))
+            assert diff.mean() < 4 and b.views[view].read(i).shape == a.views[view].read(i).shape, (view, i)
+
+
+def test_export_writes_the_v3_format(two_episodes, tmp_path, capsys):
+    out = tmp_path / "lerobot"
+    assert main(["export-lerobot", str(two_episodes), str(out)]) == 0
+    assert "exported  2 episodes, 21 frames" in capsys.readouterr().out
+    info = json.loads((out / "meta" / "info.json").read_text())
+    assert info["codebase_version"] == "v3.0" and info["fps"] == 30 and info["total_frames"] == 21
+    assert info["features"]["observation.tactile"]["names"]["hand"] == ["left", "right"]
+    assert info["features"]["observation.images.wrist_left"]["shape"] == [48, 64, 3]
+    data = pq.read_table(out / "data" / "chunk-000" / "file-000.parquet")
+    hf = json.loads(data.schema.metadata[b"huggingface"])["info"]["features"]
+    assert hf["observation.tactile"] == {"shape": [2, 21, 21], "dtype": "float32", "_type": "Array3D"}
+    assert hf["observation.hand_joints_valid"]["_type"] == "List" and hf["timestamp"]["_type"] == "Value"
+    assert data["index"].to_pylist() == list(range(21)) and data["episode_index"].to_pylist() == [0] * 12 + [1] * 9
+    assert np.allclose(data["timestamp"].to_numpy()[12:], np.arange(9) / 30)
+    episodes = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
+    assert [(e["dataset_from_index"], e["dataset_to_index"]) for e in episodes] == [(0, 12), (12, 21)]
+    key = "videos/observation.images.ego"
+    assert [(e[f"{key}/from_timestamp"], e[f"{key}/to_timestamp"]) for e in episodes] == [(0.0, 12 / 30), (12 / 30, 21 / 30)]
+    assert episodes[1]["tasks"] == ["press button"] and len(episodes[1]["stats/observation.tactile/q50"]) == 2
+    with av.open(str(out / "videos" / "observation.images.ego" / "chunk-000" / "file-000.mp4")) as video:
+        stamps = [float(frame.pts * frame.time_base) for frame in video.decode(video.streams.video[0])]
+    assert np.allclose(stamps, np.arange(21) / 30, atol=1e-6)  # LeRobot finds frames by time, within 1e-4 s
+    tasks = pq.read_table(out / "meta" / "tasks.parquet")
+    assert tasks["task"].to_pylist() == ["pick up bottle", "press button"]
+    assert json.loads(tasks.schema.metadata[b"pandas"])["index_columns"] == ["task"]  # pandas reads the text as index
+    stats = json.loads((out / "meta" / "stats.json").read_text())
+    assert np.array(stats["observation.images.ego"]["mean"]).shape == (3, 1, 1) and stats["index"]["count"] == [21]
+    tactile = np.array(stats["observation.tactile"]["max"])
+    assert tactile.shape == (2, 21, 21) and np.isfinite(tactile).all()
+    assert (tactile[~TactileLayout.default().valid] == 0).all()  # cells outside the layout: no value, 0
+
+
+def test_the_export_reads_back_as_the_same_episodes(two_episodes, tmp_path, capsys):
+    out = tmp_path / "lerobot"
+    assert main(["export-lerobot", str(two_episodes), str(out)]) == 0
+    for index, source in enumerate(sorted(two_episodes.glob("*/*/*"))):
+        with open_episode(source) as raw, open_episode(out / f"episode_{index:06d}") as back:
+            _same_episode(raw, back, [0, raw.num_frames - 1])
+            assert back.problems == []
+    assert main(["info", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "2 LeRobot episode(s)" in printed and "episode_000001: 9 frames" in printed
+    with pytest.raises(DataError, match="a LeRobot dataset of 2 episodes; open one as"):
+        open_episode(out)
+    with pytest.raises(DataError, match="no such episode"):
+        open_episode(out / "episode_000002")
+
+
+def test_export_refuses_what_would_lose_or_mix_data(two_episodes, tmp_path, capsys):
+    out = tmp_path / "lerobot"
+    out.mkdir()
+    (out / "keep").write_text("mine")
+    cases = [([str(two_episodes), str(out)], "exists; pass --overwrite"),
+             ([str(two_episodes), str(two_episodes / "inside")], "would overlap the input"),
+             ([str(tmp_path / "none"), str(tmp_path / "x")], "not found"),
+             ([str(tmp_path / "lerobot"), str(tmp_path / "y")], "no episodes found")]
+    for args, message in cases:
+        assert main(["export-lerobot", *args]) == 2
+        error = capsys.readouterr().err
+        assert message in error and len(error.strip().splitlines()) == 1
+    assert (out / "keep").read_text() == "mine" and not (two_episodes / "inside").exists()
+    assert main(["export-lerobot", str(two_episodes), str(out), "--overwrite"]) == 0
+    assert not (out / "keep").exists() and (out / "meta" / "info.json").is_file()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temporary folder left
+
+
+def test_an_episode_that_does_not_fit_is_left_out_and_said(two_episodes, tmp_path, capsys):
+    write_episode(two_episodes / "Home" / "pick_up_bottle" / "003", frames=5, size=(32, 48), seed=3)
+    assert main(["export-lerobot", str(two_episodes), str(tmp_path / "out")]) == 1
+    printed = capsys.readouterr().out
+    assert "exported  2 episodes" in printed and "skipped   " in printed and "003" in printed
+
+
+def test_the_community_layout_reads_in_the_official_hand_order(tmp_path, capsys):
+    rng = np.random.default_rng(0)
+    layout = TactileLayout.default()
+    grids = [np.where(layout.valid, rng.random((t, 2, 21, 21)), np.nan).astype(np.float32) for t in (10, 7)]
+    images = [np.stack([np.full((32, 48, 3), 20 * i, np.uint8) for i in range(len(g))]) for g in grids]
+    root = write_community_dataset(tmp_path / "community", grids, images)
+    with open_episode(root / "episode_000001") as episode:
+        assert episode.view_names == ("ego",) and episode.num_frames == 7 and episode.wilor is None
+        np.testing.assert_array_equal(episode.pressure.grids, grids[1])  # [right, left] on disk, [left, right] here
+        assert np.abs(episode.views["ego"].read(3).astype(int) - 60).max() <= 2
+        assert episode.task == "touch things" and np.array_equal(episode.timestamps_us, np.round(np.arange(7) / 30 * 1e6))
+        assert any("no hand order in its names; read as [right, left]" in p for p in episode.problems)
+    source = ReplaySource(open_episode(root / "episode_000000"), ReplayConfig(speed=None))
+    snapshots = list(source)
+    assert len(snapshots) == 10 and np.array_equal(snapshots[4].pressure_grid, grids[0][4], equal_nan=True)
+    assert main(["info", str(root)]) == 0 and "2 LeRobot episode(s)" in capsys.readouterr().out
+
+
+def test_broken_metadata_is_one_clear_line(two_episodes, tmp_path, capsys):
+    out = tmp_path / "lerobot"
+    assert main(["export-lerobot", str(two_episodes), str(out)]) == 0
+    capsys.readouterr()
+    (out / "meta" / "info.json").write_text("{not json")
+    assert main(["info", str(out / "episode_000000")]) == 2
+    error = capsys.readouterr().err
+    assert "info.json" in error and "not a readable JSON file" in error and len(error.strip().splitlines()) == 1
+    (out / "meta" / "info.json").write_text(json.dumps({"features": {}, "fps": "fast"}))
+    with pytest.raises(DataError, match="is not a frame rate"):
+        open_episode(out / "episode_000000")
+
+
+@pytest.fixture(scope="module")
+def sample_export(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("lerobot") / "sample"
+    assert main(["export-lerobot", str(SAMPLE), str(out)]) == 0
+    return out
+
+
+@pytest.mark.slow
+def test_the_bundled_sample_round_trips_through_replay(sample_export):
+    sources = sorted(p for p in SAMPLE.glob("*/*/*") if p.is_dir())
+    for index, source in enumerate(sources):
+        with open_episode(source) as raw, open_episode(sample_export / f"episode_{index:06d}") as back:
+            _same_episode(raw, back, [0, 150, raw.num_frames - 1])
+            a = list(ReplaySource(raw, ReplayConfig(speed=None)))
+            b = list(ReplaySource(back, ReplayConfig(speed=None)))
+            assert len(a) == len(b) == raw.num_frames
+            for x, y in zip(a[::50], b[::50]):
+                np.testing.assert_array_equal(x.joints, y.joints)
+                np.testing.assert_array_equal(x.pressure_grid, y.pressure_grid)
+                assert all(np.abs(x.images[v].astype(int) - y.images[v].astype(int)).mean() < 4 for v in x.images)
+
+
+@pytest.mark.slow
+def test_eval_and_replay_run_on_the_export(sample_export, tmp_path, capsys):
+    split = json.loads((sample_export / "split.json").read_text())
+    assert sorted(sum(split.values(), [])) == ["episode_000000", "episode_000001", "episode_000002"]
+    assert main(["eval", "--checkpoint", str(NANO), "--data", str(sample_export), "--split", "val", "--views", "ego",
+                 "--out", str(tmp_path / "eval")]) == 0
+    results = json.loads((tmp_path / "eval" / "results.json").read_text())["results"][0]["trajectories"]
+    assert [Path(r["path"]).name for r in results] == split["val"]
+    copy = tmp_path / "copy"
+    shutil.copytree(sample_export, copy)
+    assert main(["replay", str(copy / "episode_000001"), "--out", str(tmp_path / "r.mp4")]) == 0
+    assert "frames    300 written, 300 with a prediction" in capsys.readouterr().out

@@ -1,0 +1,211 @@
+"""Rerun recordings (`--rerun FILE.rrd`, `--rerun-serve`): written by replay, live and eval, read back with the
+SDK's own reader — entities, frame counts and values — and the output checks before any work."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from rerun.chunk import RrdReader
+
+from helpers.rerun_reading import recording_rows
+from touchanything.app.cli import main
+from touchanything.app.sessions.rerun_sink import MAX_PENDING, RerunSink, seconds_since_first
+from touchanything.devices.episodes.episode_loader import open_episode
+from touchanything.devices.snapshot import Snapshot
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
+from touchanything.viz.colormap import PRESSURE_LUT, apply
+from touchanything.viz.contact import hand_contact
+from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
+
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+PER_FRAME = ("/world/hands", "/world/measured/left", "/world/predicted/left", "/pressure/measured", "/pressure/predicted",
+             "/pressure/difference", "/contact/measured", "/contact/predicted", "/metrics/rolling", "/metrics/cumulative",
+             "/engine", "/trackers/chest", "/cameras/ego/hands")
+
+
+def _no_display(monkeypatch) -> None:
+    monkeypatch.delenv("DISPLAY", raising=False)
+
+
+def test_replay_writes_a_recording_the_sdk_reads_back(episode_dir, tmp_path, capsys, monkeypatch):
+    _no_display(monkeypatch)
+    out = tmp_path / "rec" / "replay.rrd"
+    assert main(["replay", str(episode_dir), "--rerun", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "Writing the Rerun recording only" in printed and f"rerun     {out}" in printed
+    assert out.is_file() and [p.name for p in out.parent.iterdir()] == ["replay.rrd"]  # renamed into place
+    assert len(RrdReader(out).recordings()) == 1
+    rows, static = recording_rows(out)
+    assert set(PER_FRAME) <= set(rows)
+    for entity in ("/cameras/ego", "/cameras/wrist_left", "/cameras/wrist_right"):  # the episode's MP4s as video assets
+        assert "AssetVideo:blob" in static[entity]
+        assert rows[entity].data_frames("VideoFrameReference:timestamp") == list(range(40))
+    assert rows["/pressure/measured"].data_frames("EncodedImage:blob") == list(range(40))
+    right = rows["/world/measured/right"]
+    assert right.data_frames("Mesh3D:vertex_positions") == [f for f in range(40) if f % 7 != 3]  # conftest: invalid every 7th
+    assert "Mesh3D:triangle_indices" in static["/world/measured/right"]
+    with open_episode(episode_dir) as episode:
+        truth = ground_truth_for_metrics(episode.pressure.grids, False)
+        stamps = episode.timestamps_us
+    bend = TactileLayout.default().bend
+    assert rows["/contact/measured"].at("Scalars:scalars", 12) == hand_contact(truth[12], bend).astype(float).tolist()
+    png = np.frombuffer(bytes(rows["/pressure/measured"].at("EncodedImage:blob", 12)[0]), np.uint8)
+    rgba = cv2.cvtColor(cv2.imdecode(png, cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
+    assert rgba.shape == (21, 43, 4)
+    cells = np.isfinite(truth[12, 1])
+    assert (rgba[:, 22:, :3][cells] == apply(truth[12, 1][cells], PRESSURE_LUT, 0.0, 1.0, (0, 0, 0))).all()
+    assert (rgba[:, 22:, 3][~cells] == 0).all() and (rgba[:, 21, 3] == 0).all()
+    cumulative = rows["/metrics/cumulative"].at("Scalars:scalars", 39)
+    assert f"volumetric_iou {cumulative[2]:.3f}" in printed
+    latency, step = rows["/engine"].at("Scalars:scalars", 5)
+    assert latency > 0 and step > 0
+    capture = [c for c in RrdReader(out).stream() if c.entity_path == "/engine" and not c.is_static][0].to_record_batch()
+    frames, times = capture.column("frame").to_pylist(), capture.column("capture_time").to_pylist()
+    assert all(round(t.total_seconds() * 1e6) == stamps[f] for f, t in zip(frames, times))  # the episode's own clock
+
+
+def test_the_comparison_video_and_the_recording_come_together_with_the_3d_hands(episode_dir, tmp_path, capsys):
+    video, out = tmp_path / "r.mp4", tmp_path / "r.rrd"
+    assert main(["replay", str(episode_dir), "--out", str(video), "--hand3d", "--rerun", str(out)]) == 0
+    from touchanything.devices.episodes.video_io import VideoReader
+
+    with VideoReader(video) as reader:
+        assert reader.num_frames == 40 and reader.height == 806 + 300
+    rows, _ = recording_rows(out)
+    assert rows["/world/predicted/left"].data_frames("Mesh3D:vertex_colors") == list(range(40))
+
+
+def test_the_output_is_checked_before_any_work(episode_dir, tmp_path, capsys):
+    existing = tmp_path / "old.rrd"
+    existing.write_bytes(b"keep me")
+    video = tmp_path / "v.mp4"
+    cases = [([str(existing)], "exists; pass --overwrite"), ([str(tmp_path / "x.mp4")], "must be an .rrd file"),
+             ([str(tmp_path)], "must be an .rrd file")]
+    for rerun, message in cases:
+        assert main(["replay", str(episode_dir), "--out", str(video), "--rerun", *rerun]) == 2
+        error = capsys.readouterr().err
+        assert message in error and len(error.strip().splitlines()) == 1 and "Traceback" not in error
+    assert not video.exists() and existing.read_bytes() == b"keep me"
+    if os.geteuid() != 0:
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o500)
+        assert main(["replay", str(episode_dir), "--out", str(video), "--rerun", str(locked / "a.rrd")]) == 2
+        assert "not writable" in capsys.readouterr().err
+    assert main(["replay", str(episode_dir), "--out", str(video), "--rerun", str(existing), "--overwrite"]) == 0
+    assert len(RrdReader(existing).recordings()) == 1
+
+
+def test_the_logger_queue_is_bounded_and_counts_what_it_drops(tmp_path):
+    recording = RerunRecording(RerunTarget(tmp_path / "q.rrd"), "queue", {})
+    sink = RerunSink(recording, TactileLayout.default().bend, seconds_since_first())
+    image = np.zeros((48, 64, 3), np.uint8)
+    try:
+        for i in range(200):
+            snapshot = Snapshot(i, 1_000_000 + i * 33_333, {"ego": image}, np.full((42, 3), np.nan, np.float32), np.zeros(2, bool))
+            sink.observe(snapshot, np.full((2, 21, 21), np.nan, np.float32))
+            assert sink.pending <= MAX_PENDING
+    finally:
+        sink.close()
+        recording.close()
+    assert sink.logged + sink.dropped == 200 and sink.error is None
+    rows, _ = recording_rows(tmp_path / "q.rrd")
+    assert len(rows["/cameras/ego"].data_frames("EncodedImage:blob")) == sink.logged
+    assert rows["/world/hands"].data_frames("Points3D:positions") == []  # NaN joints: cleared, never logged
+
+
+def test_live_headless_records_the_simulated_rig(tmp_path, capsys):
+    out = tmp_path / "live.rrd"
+    assert main(["live", "--scene", str(SCENES / "sim.toml"), "--headless", "--seconds", "5", "--rerun", str(out)]) == 0
+    printed = capsys.readouterr().out
+    snapshots = int(printed.split("summary   ")[1].split()[0])
+    logged, dropped = (int(printed.split("rerun     ")[1].split()[k]) for k in (0, 6))
+    rows, static = recording_rows(out)
+    cameras = rows["/cameras/ego"].data_frames("EncodedImage:blob")
+    # every snapshot and prediction was logged or, when the logger fell behind (a busy machine), dropped and counted
+    assert logged + dropped >= snapshots and len(cameras) >= 10  # (the rig runs on a little after the summary)
+    assert cameras == sorted(set(cameras)) and len(cameras) <= snapshots
+    jpeg = np.frombuffer(bytes(rows["/cameras/ego"].at("EncodedImage:blob", cameras[-1])[0]), np.uint8)
+    assert cv2.imdecode(jpeg, cv2.IMREAD_COLOR).shape == (240, 320, 3)  # the live rig's frames at half size
+    assert len(rows["/world/predicted/left"].data_frames("Mesh3D:vertex_positions")) > 0
+    trackers = rows["/trackers/chest"].data_frames("Transform3D:translation")
+    assert trackers and trackers == sorted(set(trackers)) and max(trackers) <= max(cameras) + 30
+    assert set(rows["/contact/measured"].at("Scalars:scalars", cameras[-1])) <= {0.0, 1.0}
+    assert "TransformAxes3D:axis_length" in static["/trackers/chest"]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_serving_the_recording_to_the_web_viewer(episode_dir, tmp_path):
+    port = _free_port()
+    command = [sys.executable, "-m", "touchanything.app.cli", "replay", str(episode_dir), "--out", str(tmp_path / "v.mp4"),
+               "--rerun-serve", str(port), "--rerun", str(tmp_path / "s.rrd")]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        lines = []
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and not any("still serving at" in line for line in lines):
+            lines.append(process.stdout.readline())
+        url = next(line for line in lines if "web viewer at" in line).split("web viewer at ")[1].strip()
+        assert url.startswith(f"http://localhost:{port}/?url=rerun+http://127.0.0.1:")
+        with urllib.request.urlopen(f"http://localhost:{port}/", timeout=10) as page:
+            assert page.status == 200 and b"<html" in page.read(4096).lower()
+        process.send_signal(signal.SIGINT)
+        assert process.wait(30) == 0
+        assert "stopped serving" in process.stdout.read()
+    finally:
+        process.kill()
+        process.wait()
+    assert len(RrdReader(tmp_path / "s.rrd").recordings()) == 1
+
+
+@pytest.mark.slow
+def test_eval_video_writes_one_recording_per_trajectory(sim_hdf5_root, tiny_checkpoint, tmp_path, capsys):
+    out = tmp_path / "eval.rrd"
+    assert main(["eval", "--checkpoint", str(tiny_checkpoint), "--data", str(sim_hdf5_root), "--split", "train",
+                 "--num-traj", "1", "--views", "ego", "all", "--out", str(tmp_path / "eval"), "--video", "--rerun", str(out)]) == 0
+    results = json.loads((tmp_path / "eval" / "results.json").read_text())["results"]
+    recordings = RrdReader(out).recordings()
+    assert len(recordings) == sum(len(r["trajectories"]) for r in results) == 2  # one per trajectory and view configuration
+    assert len({r.recording_id for r in recordings}) == 2
+    frames = results[0]["trajectories"][0]["frames"]
+    for recording in recordings:
+        rows, _ = recording_rows(out, recording)
+        assert rows["/pressure/measured"].data_frames("EncodedImage:blob") == list(range(frames))
+        assert len(rows["/cameras/ego"].data_frames("EncodedImage:blob")) == frames  # HDF5 frames go as JPEG
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["eval", "eval.rrd"]  # no part left behind
+
+
+def _dashboard_with_recording(episode: Path, rrd: Path) -> str:
+    from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint
+    from touchanything.app.sessions.replay_runs import replay_in_dashboard
+    from touchanything.devices.snapshot import VIEW_NAMES
+
+    dashboard = replay_in_dashboard(episode, ModelChoice(default_checkpoint()), VIEW_NAMES, max_frames=30, rerun=RerunTarget(rrd))
+    return dashboard.session.rerun.line()
+
+
+def test_the_dashboard_replay_logs_through_the_session(dashboard_display, episode_dir, tmp_path):
+    from test_dashboard import in_fresh_process
+
+    line = in_fresh_process(_dashboard_with_recording, episode_dir, tmp_path / "d.rrd")
+    logged = int(line.split()[1])
+    rows, static = recording_rows(tmp_path / "d.rrd")
+    assert "AssetVideo:blob" in static["/cameras/ego"]  # the raw episode's MP4, not frames
+    measured = rows["/pressure/measured"].data_frames("EncodedImage:blob")
+    assert len(measured) > 10 and measured == sorted(measured) and logged >= len(measured)
+    assert len(rows["/pressure/predicted"].data_frames("EncodedImage:blob")) > 5

@@ -1,0 +1,35 @@
+"""The default Rerun layout of a recording (`viz.rerun_recording`), arranged like the dashboard: the three
+cameras on top; the measured, predicted and difference maps beside the pressure painted on the 3D hands
+(measured | predicted) in the middle; the official metrics, the latency, the contact flags and the trackers at
+the bottom. The time panel follows the `frame` timeline."""
+from __future__ import annotations
+
+import rerun.blueprint as rrb
+
+from touchanything.devices.snapshot import VIEW_NAMES
+
+SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
+"""The official metrics logged per frame (rolling over 3 s and cumulative)."""
+VIEW_LABELS = {"ego": "Head camera", "wrist_left": "Left wrist camera", "wrist_right": "Right wrist camera"}
+
+
+def _hands(kind: str, title: str) -> rrb.Spatial3DView:
+    return rrb.Spatial3DView(origin="world", contents=["+ world/hands/**", f"+ world/{kind}/**"], name=title)
+
+
+def default_blueprint() -> rrb.Blueprint:
+    cameras = rrb.Horizontal(*(rrb.Spatial2DView(origin=f"cameras/{view}", name=VIEW_LABELS[view]) for view in VIEW_NAMES))
+    maps = rrb.Vertical(
+        rrb.Spatial2DView(origin="pressure/measured", name="Measured pressure (left | right)"),
+        rrb.Spatial2DView(origin="pressure/predicted", name="Predicted pressure (left | right)"),
+        rrb.Spatial2DView(origin="pressure/difference", name="Predicted − measured (left | right)"),
+    )
+    hands = rrb.Horizontal(_hands("measured", "Measured on the hand"), _hands("predicted", "Predicted on the hand"))
+    plots = rrb.Horizontal(
+        rrb.TimeSeriesView(origin="metrics", name="Official metrics (3 s and all)"),
+        rrb.TimeSeriesView(origin="engine", name="Latency and engine step (ms)"),
+        rrb.TimeSeriesView(origin="contact", name="Contact (official rule per hand)"),
+        rrb.Spatial3DView(origin="trackers", name="Trackers"),
+    )
+    layout = rrb.Vertical(cameras, rrb.Horizontal(maps, hands, column_shares=[1, 2]), plots, row_shares=[3, 4, 2])
+    return rrb.Blueprint(layout, rrb.TimePanel(timeline="frame"))

@@ -1,0 +1,265 @@
+"""Rerun recordings of a session (`--rerun FILE.rrd`, `--rerun-serve`), laid out by `viz.rerun_blueprint`.
+
+Every row is on two timelines: `frame` (the episode's frame index, or the live rig's tick) and `capture_time`
+(seconds from the episode's or the session's first frame). Entities:
+
+- `cameras/{ego,wrist_left,wrist_right}`: the episode's own MP4 as a video asset with one frame reference per
+  frame (`log_videos`), else a JPEG per frame (`log_observation`); `cameras/ego/hands`: both skeletons projected
+  into the head camera.
+- `world/hands`: both hands' 3D joints with their bones, class 0 the left hand and 1 the right, keypoints in the
+  official joint order (WiLoR's head-camera frame: metres, x right, y down, z forward); `world/measured/{left,right}`,
+  `world/predicted/{left,right}`: the hand surface (`viz.hand_surface`), each vertex coloured by its tactile cell
+  on the fixed 0–1 pressure scale (its triangles are static: only positions and colours change per frame).
+- `pressure/{measured,predicted}`: both 21×21 maps side by side (left | right, one transparent column between)
+  as an RGBA PNG on the official colour scale (blue 0 → red 1, as in the dashboard), cells outside the layout
+  transparent; `pressure/difference`: predicted − measured on [−1, 1] (blue: too low, red: too high).
+- `contact/{measured,predicted}`: the official contact rule per hand, [left, right], 0 or 1.
+- `metrics/{rolling,cumulative}`: the official metrics `SHOWN_METRICS` over the last 3 s and over everything so far.
+- `engine`: [capture-to-prediction latency, the engine's time for the step] in ms.
+- `trackers/{chest,left_wrist,right_wrist}`: the Vive tracker poses as transforms (OpenVR frame, y up).
+
+A hand without a valid pose, a missing map or prediction is cleared at its frame (nothing stale is shown). Entities
+are grouped so that a frame takes about 20 log calls: the calls, not the bytes, are what logging costs.
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from datetime import timedelta
+from pathlib import Path
+
+import cv2
+import numpy as np
+import rerun as rr
+
+from touchanything.devices.hand_pose import project_wilor
+from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
+from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
+from touchanything.viz.hand3d_panel import vertex_colours
+from touchanything.viz.hand_regions import BONES
+from touchanything.viz.hand_surface import hand_topology, hand_vertices
+from touchanything.viz.rerun_blueprint import SHOWN_METRICS, default_blueprint
+from touchanything.viz.rerun_columns import ColumnBuffer
+
+APPLICATION = "touchanything"
+JPEG_QUALITY = 75
+HAND_COLOURS = ((90, 200, 255), (255, 170, 90))
+"""Skeleton colour per hand (left, right), as in the dashboard."""
+FLUSH_SECONDS, FLUSH_BYTES = 0.5, 8 << 20
+"""Rows are batched into chunks for half a second (or 8 MiB): one chunk per frame and entity would cost more
+in chunk headers than the data, and the file's footer keeps an entry per chunk in memory while recording."""
+
+
+@dataclass(frozen=True)
+class RerunTarget:
+    """Where a recording goes: `rrd`, a file (written under a temporary name in its folder and renamed when the
+    recording closes); `serve_port`, a local web viewer on that HTTP port fed by a gRPC server on 127.0.0.1
+    (`grpc_port`, 0: any free port). `image_scale` scales camera frames logged as JPEG (the live rig's)."""
+
+    rrd: Path | None = None
+    serve_port: int | None = None
+    grpc_port: int = 0
+    image_scale: float = 1.0
+
+
+def map_image(grids: np.ndarray, lut: np.ndarray, low: float) -> np.ndarray:
+    """Both hands' (2, 21, 21) maps on the fixed scale [low, 1] of `lut`, side by side with a column between,
+    as a (21, 43, 4) RGBA image; cells outside the layout (NaN) and the gap are transparent."""
+    values = np.full((21, 43), np.nan, np.float32)
+    values[:, :21], values[:, 22:] = grids[0], grids[1]
+    rgba = np.zeros((21, 43, 4), np.uint8)
+    rgba[..., :3] = apply(values, lut, low, 1.0, (0, 0, 0))
+    rgba[..., 3] = np.where(np.isfinite(values), 255, 0)
+    return rgba
+
+
+def partial_path(path: Path) -> Path:
+    """The temporary name an output is written under until it is complete."""
+    return path.with_name(f".{path.name}.partial-{os.getpid()}")
+
+
+class RerunRecording:
+    """One Rerun recording. Methods may be called from any thread, one at a time; rows are sent in batches
+    (`viz.rerun_columns`), each with its own frame and time.
+    `close()` flushes, writes the file's footer and renames it into place; `url` is the web viewer's address
+    when serving."""
+
+    def __init__(self, target: RerunTarget, name: str, properties: Mapping[str, str]) -> None:
+        self.target = target
+        self.url: str | None = None
+        batching = rr.ChunkBatcherConfig(flush_tick=timedelta(seconds=FLUSH_SECONDS), flush_num_bytes=FLUSH_BYTES)
+        self._stream = rr.RecordingStream(APPLICATION, send_properties=True, batcher_config=batching)
+        sinks = []
+        if target.rrd is not None:
+            sinks.append(rr.FileSink(partial_path(target.rrd)))
+        if target.serve_port is not None:
+            server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=target.grpc_port, server_memory_limit="512MiB")
+            sinks.append(server)
+        self._stream.set_sinks(*sinks, default_blueprint=default_blueprint())
+        if target.serve_port is not None:
+            rr.serve_web_viewer(web_port=target.serve_port, open_browser=False, connect_to=server.uri)
+            self.url = f"http://localhost:{target.serve_port}/?url={server.uri}"
+        self._stream.send_recording_name(name)
+        if properties:
+            self._stream.send_property("session", rr.AnyValues(**{k: str(v) for k, v in properties.items()}))
+        self._rows = ColumnBuffer(self._stream)
+        self._videos: set[str] = set()
+        self._image_size: dict[str, tuple[int, int]] = {}
+        self._surface: tuple[int, list[np.ndarray | None]] | None = None
+        self._log_static()
+
+    def _log_static(self) -> None:
+        log = self._stream.log
+        classes = [rr.ClassDescription(info=rr.AnnotationInfo(id=h, label=f"{hand} hand", color=HAND_COLOURS[h]),
+                                       keypoint_connections=BONES) for h, hand in enumerate(HANDS)]
+        log("/", rr.AnnotationContext(classes), static=True)
+        log("world", rr.ViewCoordinates.RDF, static=True)
+        log("trackers", rr.ViewCoordinates.RUB, static=True)
+        for role in TRACKER_ROLES:
+            log(f"trackers/{role}", rr.TransformAxes3D(0.1), static=True)
+        for h, hand in enumerate(HANDS):
+            for kind in ("measured", "predicted"):
+                log(f"world/{kind}/{hand}", rr.Mesh3D.from_fields(triangle_indices=hand_topology(h).triangles), static=True)
+        for kind, colours in (("measured", ((90, 200, 255), (60, 120, 255))), ("predicted", ((255, 170, 90), (255, 90, 60)))):
+            log(f"contact/{kind}", rr.SeriesLines(colors=colours, names=[f"{hand} {kind}" for hand in HANDS]), static=True)
+        log("metrics/rolling", rr.SeriesLines(names=[f"{name} (3 s)" for name in SHOWN_METRICS]), static=True)
+        log("metrics/cumulative", rr.SeriesLines(names=[f"{name} (all)" for name in SHOWN_METRICS],
+                                                 widths=[1.0] * len(SHOWN_METRICS)), static=True)
+        log("engine", rr.SeriesLines(names=["latency ms", "engine step ms"]), static=True)
+        log("world/hands", rr.Points3D.from_fields(radii=0.004, show_labels=False), static=True)
+        log("cameras/ego/hands", rr.Points2D.from_fields(radii=2.5, show_labels=False), static=True)
+        for kind in ("measured", "predicted", "difference"):
+            log(f"pressure/{kind}", rr.EncodedImage.from_fields(media_type="image/png", magnification_filter="nearest"), static=True)
+
+    def log_videos(self, videos: Mapping[str, Path], frames: int, times_s: np.ndarray,
+                   sizes: Mapping[str, tuple[int, int]]) -> set[str]:
+        """Log each view's MP4 (`videos` {view: path}) as a video asset with a reference for each of its first
+        `frames` frames at `times_s` (frames,); `sizes` {view: (width, height)}. Returns the views logged;
+        a file Rerun cannot read as a video (or that has fewer frames) is left out, to go as JPEG frames."""
+        for view, path in videos.items():
+            try:
+                asset = rr.AssetVideo(path=path)
+                stamps = asset.read_frame_timestamps_nanos()
+            except (RuntimeError, ValueError, OSError):
+                continue
+            if len(stamps) < frames:
+                continue
+            self._stream.log(f"cameras/{view}", asset, static=True)
+            indexes = [rr.TimeColumn("frame", sequence=np.arange(frames)),
+                       rr.TimeColumn("capture_time", duration=np.asarray(times_s[:frames], np.float64))]
+            self._stream.send_columns(f"cameras/{view}", indexes=indexes,
+                                      columns=rr.VideoFrameReference.columns_nanos(stamps[:frames]))
+            self._videos.add(view)
+            self._image_size[view] = sizes[view]
+        return set(self._videos)
+
+    def log_observation(self, frame: int, time_s: float, images: Mapping[str, np.ndarray], joints: np.ndarray,
+                        valid: np.ndarray, measured: np.ndarray | None, measured_contact: np.ndarray | None,
+                        trackers: Mapping[str, np.ndarray]) -> None:
+        """What the rig saw at `frame`: camera frames {view: (H, W, 3) uint8 RGB} (views logged as videos are
+        skipped), joints (42, 3) with valid (2,), the measured map (2, 21, 21) and its contact (2,) bool (None:
+        no glove), tracker poses {role: (7,) trans + rot w, x, y, z}."""
+        at = (frame, time_s)
+        for view, image in images.items():
+            if view not in self._videos:
+                self._log_image(view, image, at)
+        self._log_skeletons(joints, valid, at)
+        self._log_map("measured", measured, PRESSURE_LUT, 0.0, at)
+        self._log_surface("measured", joints, valid, measured, at)
+        self._log_contact("measured", measured_contact, at)
+        for role in TRACKER_ROLES:
+            pose = trackers.get(role)
+            if pose is None or not np.isfinite(pose).all():
+                self._rows.clear(f"trackers/{role}", *at)
+            else:
+                xyzw = np.asarray(pose, np.float32)[[4, 5, 6, 3]]
+                self._rows.put(f"trackers/{role}", rr.Transform3D, *at, translation=np.asarray(pose[None, :3], np.float32),
+                               quaternion=xyzw[None])
+
+    def log_prediction(self, frame: int, time_s: float, predicted: np.ndarray | None, predicted_contact: np.ndarray | None,
+                       joints: np.ndarray, valid: np.ndarray, measured: np.ndarray | None, latency_ms: float | None,
+                       step_ms: float | None, rolling: Mapping[str, float] | None, cumulative: Mapping[str, float] | None) -> None:
+        """The prediction for `frame` ((2, 21, 21) or None) with its contact (2,) bool, painted on that frame's
+        joints; its difference to `measured`; the latency, the engine step and the running official metrics
+        (None: not known)."""
+        at = (frame, time_s)
+        self._log_map("predicted", predicted, PRESSURE_LUT, 0.0, at)
+        self._log_surface("predicted", joints, valid, predicted, at)
+        self._log_contact("predicted", predicted_contact, at)
+        difference = None if predicted is None or measured is None else predicted - measured
+        self._log_map("difference", difference, ERROR_LUT, -1.0, at)
+        timings = np.array([np.nan if value is None else value for value in (latency_ms, step_ms)], np.float64)
+        self._rows.put("engine", rr.Scalars, *at, scalars=timings)
+        for kind, values in (("rolling", rolling), ("cumulative", cumulative)):
+            if values is not None:
+                self._rows.put(f"metrics/{kind}", rr.Scalars, *at, scalars=np.array([values[n] for n in SHOWN_METRICS], np.float64))
+
+    def _log_image(self, view: str, image: np.ndarray, at: tuple[int, float]) -> None:
+        scale = self.target.image_scale
+        height, width = image.shape[:2]
+        self._image_size[view] = (width, height)
+        if scale != 1.0:
+            image = cv2.resize(image, (max(1, round(width * scale)), max(1, round(height * scale))), interpolation=cv2.INTER_AREA)
+        ok, jpeg = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+        if ok:
+            self._rows.put(f"cameras/{view}", rr.EncodedImage, *at, blob=[jpeg.tobytes()], media_type=["image/jpeg"])
+
+    def _log_skeletons(self, joints: np.ndarray, valid: np.ndarray, at: tuple[int, float]) -> None:
+        """Both hands' joints in 3D and projected into the head camera (its image as logged)."""
+        hands = np.asarray(joints, np.float32).reshape(2, 21, 3)
+        shown = [h for h in range(2) if valid[h] and np.isfinite(hands[h]).all()]
+        if not shown:
+            self._rows.clear("world/hands", *at)
+            self._rows.clear("cameras/ego/hands", *at)
+            return
+        points, classes = hands[shown].reshape(-1, 3), np.repeat(np.array(shown, np.uint16), 21)
+        keypoints = np.tile(np.arange(21, dtype=np.uint16), len(shown))
+        self._rows.put("world/hands", rr.Points3D, *at, positions=points, class_ids=classes, keypoint_ids=keypoints)
+        size = self._image_size.get("ego")
+        pixels = None if size is None else project_wilor(points, *size) * (1.0 if "ego" in self._videos else self.target.image_scale)
+        if pixels is None or not np.isfinite(pixels).all():
+            self._rows.clear("cameras/ego/hands", *at)
+        else:
+            self._rows.put("cameras/ego/hands", rr.Points2D, *at, positions=pixels.astype(np.float32), class_ids=classes,
+                           keypoint_ids=keypoints)
+
+    def _log_map(self, kind: str, grids: np.ndarray | None, lut: np.ndarray, low: float, at: tuple[int, float]) -> None:
+        if grids is None:
+            self._rows.clear(f"pressure/{kind}", *at)
+        else:
+            ok, png = cv2.imencode(".png", cv2.cvtColor(map_image(grids, lut, low), cv2.COLOR_RGBA2BGRA))
+            if ok:
+                self._rows.put(f"pressure/{kind}", rr.EncodedImage, *at, blob=[png.tobytes()])
+
+    def _vertices(self, frame: int, joints: np.ndarray, valid: np.ndarray) -> list[np.ndarray | None]:
+        """Both hands' surface vertices at `frame` (computed once for the measured and the predicted mesh)."""
+        if self._surface is None or self._surface[0] != frame:
+            hands = np.asarray(joints, np.float64).reshape(2, 21, 3)
+            self._surface = (frame, [hand_vertices(hands[h], h) if valid[h] else None for h in range(2)])
+        return self._surface[1]
+
+    def _log_surface(self, kind: str, joints: np.ndarray, valid: np.ndarray, grids: np.ndarray | None,
+                     at: tuple[int, float]) -> None:
+        vertices = self._vertices(at[0], joints, valid)
+        for h, hand in enumerate(HANDS):
+            if vertices[h] is None or grids is None:
+                self._rows.clear(f"world/{kind}/{hand}", *at)
+            else:
+                self._rows.put(f"world/{kind}/{hand}", rr.Mesh3D, *at, vertex_positions=vertices[h],
+                               vertex_colors=vertex_colours(grids[h], h))
+
+    def _log_contact(self, kind: str, contact: np.ndarray | None, at: tuple[int, float]) -> None:
+        if contact is not None:
+            self._rows.put(f"contact/{kind}", rr.Scalars, *at, scalars=np.asarray(contact, np.float64))
+
+    def close(self) -> None:
+        """Flush, close the sinks (the file gets its footer) and rename the file into place; idempotent."""
+        if self._stream is None:
+            return
+        self._rows.flush()
+        stream, self._stream = self._stream, None
+        stream.flush()
+        stream.disconnect()
+        if self.target.rrd is not None and partial_path(self.target.rrd).exists():
+            os.replace(partial_path(self.target.rrd), self.target.rrd)
