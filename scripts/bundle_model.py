@@ -1,21 +1,37 @@
-"""Copy a trained checkpoint into models/<name>/ as fp16 (official dict format, weights only) + config.yaml.
+"""Copy a trained checkpoint into models/<name>/ as fp16 (official dict format, weights only) + config.yaml, with
+its model card (what it is, what it was trained on, its held-out accuracy from `touchanything eval` results).
 
-    .venv/bin/python scripts/bundle_model.py CHECKPOINT models/NAME
+    .venv/bin/python scripts/bundle_model.py CHECKPOINT models/NAME --trained-on "simulated EgoTouch world, 162 episodes" \
+        --eval test_seen=EVAL_SEEN/results.json test_unseen=EVAL_UNSEEN/results.json
 """
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
 import yaml
 
 from touchanything.inference.model.checkpoint import CONFIG_FILE, find_config, load_model, read_checkpoint, save_checkpoint
+from touchanything.inference.model.model_card import ModelCard, write_card
+
+CARD_METRICS = ("volumetric_iou", "contact_iou", "temporal_accuracy", "mae")
+
+
+def held_out(results_json: Path) -> dict[str, float]:
+    """The causal all-views metrics of the evaluated model (not its baselines) in an eval results.json."""
+    payload = json.loads(results_json.read_text())
+    record = next(r for r in payload["results"] if r["views"] == "all" and not r["pose_only"] and not r["baseline"])
+    return {key: float(record["causal"][key]) for key in CARD_METRICS if key in record["causal"]}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("checkpoint", type=Path)
     parser.add_argument("out", type=Path)
+    parser.add_argument("--trained-on", required=True, help="where the training data came from (the card says it)")
+    parser.add_argument("--eval", nargs="+", default=[], metavar="SPLIT=RESULTS_JSON",
+                        help="held-out eval results per test split (their causal, all-views metrics go on the card)")
     args = parser.parse_args()
     model = load_model(args.checkpoint)
     source = read_checkpoint(args.checkpoint)
@@ -23,7 +39,12 @@ def main() -> None:
     target = args.out / "best_model.pth"
     save_checkpoint(target, model, epoch=int(source.get("epoch", 0)), loss=source.get("loss"),
                     metrics=source.get("metrics"), half=True, config=config)
-    print(f"{target}: {target.stat().st_size / 2**20:.1f} MB (+ {args.out / CONFIG_FILE})")
+    splits = dict(item.split("=", 1) for item in args.eval)
+    card = ModelCard(name=args.out.name, trained_on=args.trained_on,
+                     held_out={split: held_out(Path(path)) for split, path in splits.items()},
+                     pose_only=bool(model.config.blank_images))
+    write_card(args.out, card)
+    print(f"{target}: {target.stat().st_size / 2**20:.1f} MB (+ {args.out / CONFIG_FILE}); card: {card.summary()}")
 
 
 if __name__ == "__main__":

@@ -11,15 +11,18 @@ from touchanything.devices.episodes.video_io import VideoWriter
 from touchanything.viz.pressure_panel import BACKGROUND, pressure_panel, put_text
 
 WIDTH, CAMERA_HEIGHT, PANEL_HEIGHT, STRIP_HEIGHT, FOOTER_HEIGHT = 1440, 270, 360, 150, 26
+CAPTION_COLOURS = ((235, 235, 235), (40, 180, 255))  # BGR: the model line, then a warning in amber
 VIEW_LABELS = {"ego": "Head", "wrist_left": "Left Wrist", "wrist_right": "Right Wrist"}
 
 
 def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred: np.ndarray | None, footer: str,
-                     strip: np.ndarray | None = None, hand3d: np.ndarray | None = None) -> np.ndarray:
+                     strip: np.ndarray | None = None, hand3d: np.ndarray | None = None,
+                     caption: tuple[str, ...] = ()) -> np.ndarray:
     """(806, 1440, 3) uint8: the three views (480×270 each), GT | prediction | error panels, `strip`
     (150, 1440, 3) and the footer line; without a strip (656, 1440, 3). `hand3d` (h, 1440, 3), the pressure on
     the 3D hands, goes below the panels (the frame grows by h).
 
+    `caption`: lines at the foot of the panels (what the model is; the second line, a warning, in amber).
     Absent views, ground truth or prediction leave labelled placeholders."""
     strip_height = 0 if strip is None else STRIP_HEIGHT
     extra = 0 if hand3d is None else hand3d.shape[0]
@@ -41,6 +44,8 @@ def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred:
         frame[CAMERA_HEIGHT:CAMERA_HEIGHT + PANEL_HEIGHT, x:x + 480] = pressure_panel(grids, title, 480, PANEL_HEIGHT,
                                                                                      error=error)
     top = CAMERA_HEIGHT + PANEL_HEIGHT
+    for k, line in enumerate(reversed(caption)):
+        put_text(frame, line, (10, top - 8 - 18 * k), 0.45, CAPTION_COLOURS[len(caption) - 1 - k])
     if hand3d is not None:
         frame[top:top + extra] = hand3d
     if strip is not None:

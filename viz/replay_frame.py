@@ -36,10 +36,12 @@ def footer_text(snapshot: Snapshot, total: int, prediction: Prediction | None, m
 
 class ReplayFrameRenderer:
     """Renders the frames of one episode, in order: keeps the recent per-frame series the bottom strip plots.
-    `hand3d`: add the panel of the pressure painted on the 3D hands (`viz.hand3d_panel`)."""
+    `hand3d`: add the panel of the pressure painted on the 3D hands (`viz.hand3d_panel`); `caption`: lines
+    under the predicted maps (what the model is)."""
 
-    def __init__(self, total_frames: int, bend: np.ndarray, hand3d: bool = False) -> None:
+    def __init__(self, total_frames: int, bend: np.ndarray, hand3d: bool = False, caption: tuple[str, ...] = ()) -> None:
         self.total_frames = total_frames
+        self.caption = caption
         self.bend = bend
         self.hand3d = hand3d
         self.viou: list[float] = []
@@ -56,7 +58,7 @@ class ReplayFrameRenderer:
             images["ego"] = draw_hands(images["ego"], snapshot.joints, snapshot.joints_valid, shown)
         footer = footer_text(snapshot, self.total_frames, latest, metrics)
         hands = hand3d_panel(snapshot.joints, snapshot.joints_valid, truth, shown) if self.hand3d else None
-        return comparison_frame(images, truth, shown, footer, self._strip(shown, truth), hands)
+        return comparison_frame(images, truth, shown, footer, self._strip(shown, truth), hands, self.caption)
 
     def _add(self, metrics: RunningMetrics | None, prediction: Prediction | None) -> None:
         rolling = metrics.rolling() if metrics is not None else None

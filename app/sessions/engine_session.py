@@ -11,11 +11,11 @@ from collections import deque
 import numpy as np
 
 from touchanything.app.sessions.bundled import bundled_models
-from touchanything.app.sessions.engine_choice import CPU_TIERS, ModelChoice, build_engine, model_label, tiers_for
+from touchanything.app.sessions.engine_choice import CPU_TIERS, ModelChoice, build_engine, illustrative_note, model_label, tiers_for
 from touchanything.app.sessions.rerun_sink import RerunSink
 from touchanything.devices.errors import UserError
 from touchanything.devices.rate_meter import RateMeter, StageMeans
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.devices.snapshot import POSE_FROM_CAMERA, VIEW_NAMES, Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.engine.live_engine import LiveEngine
 from touchanything.inference.engine.prediction import Prediction
@@ -51,6 +51,7 @@ class EngineSession:
         self.message = message
         self._loading = False
         self._model = model_label(choice, engine) if engine is not None else "no model"
+        self._camera_note = illustrative_note(choice, camera_pose=True)
         self.live = LiveEngine(engine, on_prediction=self._on_prediction) if engine is not None else None
         self.rerun: RerunSink | None = None
 
@@ -143,8 +144,13 @@ class EngineSession:
                 metric_frames=self.metrics.frames,
                 history={name: np.array(values, np.float64) for name, values in self._history.items()},
                 stage_ms=self._stages.means(), engine_fps=self._predictions.rate(), sources=tuple(rows),
-                playback=self.playback(), model=self._model, message=self.message,
+                playback=self.playback(), model=self._model_line(snapshot), message=self.message,
                 recording=self.recording_status())
+
+    def _model_line(self, snapshot: Snapshot | None) -> str:
+        """The model's label, with the illustrative-only note while the poses come from the camera."""
+        camera = snapshot is not None and snapshot.pose_source == POSE_FROM_CAMERA
+        return f"{self._model} — {self._camera_note}" if camera and self._camera_note and self.live else self._model
 
     def recording_status(self) -> str | None:
         return None
@@ -206,4 +212,5 @@ class EngineSession:
         else:
             self.live.replace_engine(engine)
         self.choice, self._model = choice, model_label(choice, engine)
+        self._camera_note = illustrative_note(choice, camera_pose=True)
         self.message = f"running {self._model}"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, model_label
+from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, illustrative_note, model_label, model_name
 from touchanything.app.sessions.episode_summary import episode_lines
 from touchanything.app.sessions.replay_export import ReplaySummary, export_replay, log_episode_videos
 from touchanything.app.sessions.replay_session import ReplaySession
@@ -37,17 +37,21 @@ def replay_to_video(path: Path, choice: ModelChoice, views: tuple[str, ...], out
         raise UserError(f"{out.parent}: cannot create the output folder ({exc.strerror})") from None
     with open_episode(path) as episode:
         _require_ego(path, episode)
-        source = ReplaySource(episode, ReplayConfig(speed=None, views=views, pose_source=pose_source_for(episode)))
+        pose_source = pose_source_for(episode)
+        source = ReplaySource(episode, ReplayConfig(speed=None, views=views, pose_source=pose_source))
+        caption = tuple(line for line in (model_name(choice), illustrative_note(choice, pose_source == "camera")) if line)
         print("\n".join(episode_lines(episode)))
         recording = rerun and open_recording(rerun, f"replay {episode_name(episode)}", session_properties(choice, engine, episode))
         try:
             with tqdm(total=episode.num_frames, unit="frame", desc="replay") as bar:
-                summary = export_replay(source, engine, out, lambda frame: bar.update(1), hand3d, recording)
+                summary = export_replay(source, engine, out, lambda frame: bar.update(1), hand3d, recording, caption)
         except BaseException:
             if recording is not None:
                 recording.close()  # what was logged stays readable
             raise
     print(f"model     {model_label(choice, engine)}, {engine.runtime.capture}")
+    if len(caption) > 1:
+        print(f"note      {caption[1]}")
     print("\n".join(summary.lines()))
     if out is not None:
         print(f"video     {out}")
