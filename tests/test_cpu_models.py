@@ -4,6 +4,7 @@ numerics at the extremes, and that the streaming engine, ONNX export (fp32 and i
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,17 +21,15 @@ from touchanything.inference.model.model_config import (
     PRESETS,
     BaselineConfig,
     ModelConfig,
-    VisionEncoderConfig,
     config_from_dict,
     config_to_dict,
 )
 from touchanything.inference.model.models import create_model
 from touchanything.inference.model.pose_encoder import FEATURE_LIMIT, hand_features, prepare_poses
 from touchanything.inference.model.single_frame_baseline import SingleFrameBaseline
+from touchanything.inference.training.train_config import train_config_from_file
 
-CONV = VisionEncoderConfig(type="conv", model_name="conv_n16", freeze=False)
-CONV_NANO = dataclasses.replace(PRESETS["nano"], vision_encoder=CONV, image_size=64,
-                                pose_encoder=dataclasses.replace(PRESETS["nano"].pose_encoder, input="hand"))
+CONV_NANO = dataclasses.replace(PRESETS["nano"], image_size=64)
 BASELINE = dataclasses.replace(CONV_NANO, baseline=BaselineConfig(hidden=64, layers=1))
 MODELS = {"conv nano": CONV_NANO, "baseline": BASELINE}
 
@@ -133,7 +132,8 @@ def test_onnx_export_fp32_and_int8_agree_with_torch(name, tmp_path):
     model = make(MODELS[name])
     export_onnx(model, tmp_path, int8=True)
     frames = list(snapshots(64, 14, seed=5))
-    reference = [p.pressure for s in frames for p in StreamingEngine(model, EngineConfig()).step(s)]
+    torch_engine = StreamingEngine(model, EngineConfig())
+    reference = [p.pressure for s in frames for p in torch_engine.step(s)]
     for precision, tolerance in (("fp32", 1e-4), ("int8", 0.1)):
         engine = StreamingEngine(model, EngineConfig(runtime="onnx", precision=precision, onnx_dir=tmp_path))
         got = [p.pressure for s in frames for p in engine.step(s)]
@@ -160,3 +160,20 @@ def test_the_baseline_is_its_own_class_and_ignores_time():
         whole = model(poses=poses, views=views)["tactile"]
         last = model(poses=poses[:, -1:], views={v: x[:, -1:] for v, x in views.items()})["tactile"]
     assert torch.allclose(whole[:, -1:], last, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["nano", "tiny", "nano_vit"])
+def test_the_bundled_configs_are_the_presets(name):
+    """configs/NAME.yaml (what the bundled models were trained with) builds exactly PRESETS[NAME]."""
+    assert train_config_from_file(Path(f"configs/{name}.yaml")).model == PRESETS[name]
+
+
+def test_the_pose_skip_is_a_direct_path_from_the_pose_to_the_cells():
+    """With the fused tokens fixed, the mlp_skip decoder's maps still change with the hand pose."""
+    model = make(PRESETS["nano"])
+    fused = torch.zeros(1, 1, 42, model.config.embed_dim)
+    poses = torch.from_numpy(prepare_poses(np.random.default_rng(1).normal([0, 0, 12], 0.2, (42, 3)), np.ones(2, bool)))
+    with torch.no_grad():
+        a = model.decoder(fused, model.pose_encoder.normalised(poses[None, None]))
+        b = model.decoder(fused, model.pose_encoder.normalised(poses[None, None] * 1.2))
+    assert a.shape == (1, 1, 2, 21, 21) and not torch.allclose(a, b)

@@ -38,10 +38,6 @@ class FrameEncoder(nn.Module):
         gates = self.multi_view.view_gate(self.multi_view.cross_view_transformer(summary)).squeeze(-1)
         weights = torch.softmax(gates, dim=-1)[0]
         fused = (weights[:, None, None] * encoded).sum(dim=0)
-        if self.multi_view.summary_tokens:
-            placement = torch.nn.functional.one_hot(view_ids, len(VIEW_NAMES)).to(encoded.dtype)  # (V, 3)
-            slots = placement.T @ encoded.mean(dim=1) + (1 - placement.sum(dim=0))[:, None] * self.multi_view.absent_view_tokens
-            fused = torch.cat([fused, slots], dim=0)
         return self.input_proj(self.multi_view.output_norm(fused))
 
 

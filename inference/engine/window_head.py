@@ -12,6 +12,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from touchanything.inference.model.tactile_decoder import MlpTactileDecoder
 from touchanything.inference.model.temporal import DividedSpaceTimeLayer
 from touchanything.inference.model.touch_model import TouchAnything
 
@@ -63,7 +64,7 @@ class WindowHead(nn.Module):
         feats = self.decoder.joint_proj(fused)
         p, j, c = feats.shape
         per_hand = feats.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, c)
-        if getattr(self.decoder, "skip", 0):
+        if isinstance(self.decoder, MlpTactileDecoder):
             pose = self.pose_encoder.normalised(joints)
             hands = self.decoder.hand(per_hand, pose.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, -1))
         else:

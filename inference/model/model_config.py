@@ -65,7 +65,6 @@ class MultiViewConfig:
     mlp_ratio: float = field(default=4.0, metadata=RATIO)
     dropout: float = field(default=0.1, metadata=DROPOUT)
     view_dropout_prob: float = field(default=0.3, metadata=limits(0.0, 1.0))
-    summary_tokens: bool = False
 
 
 POSE_INPUTS = ("camera", "hand")
@@ -94,12 +93,12 @@ class FusionConfig:
     dropout: float = field(default=0.1, metadata=DROPOUT)
 
 
-DECODER_TYPES = ("joint_level", "mlp", "mlp_skip")
+DECODER_TYPES = ("joint_level", "mlp_skip")
 
 
 @dataclass(frozen=True)
 class TactileDecoderConfig:
-    """`type`: `joint_level` (official) or `mlp` (a project extension, `tactile_decoder.MlpTactileDecoder`)."""
+    """`type`: `joint_level` (official) or `mlp_skip` (a project extension, `tactile_decoder.MlpTactileDecoder`)."""
 
     FIXED: ClassVar = {"num_joints": NUM_JOINTS, "tactile_size": TACTILE_SIZE}
     type: str = "joint_level"
@@ -212,15 +211,27 @@ def _light(backbone: str, size: int, temporal: int, heads: int, channels: int) -
         tactile_decoder=TactileDecoderConfig(conv_channels=channels), image_size=size)
 
 
+def _cpu(backbone: str, size: int, temporal: int, channels: int) -> ModelConfig:
+    """A CPU preset (docs/findings.md): `_light` with 4 heads and the project extensions — a conv backbone
+    trained from scratch, the wrist-relative hand pose input, the MLP decoder with the pose skip."""
+    light = _light(backbone, size, temporal, 4, channels)
+    return replace(light, vision_encoder=VisionEncoderConfig(type="conv", model_name=backbone, freeze=False),
+                   pose_encoder=replace(light.pose_encoder, input="hand"),
+                   tactile_decoder=replace(light.tactile_decoder, type="mlp_skip"))
+
+
 PRESETS = {
     "paper": ModelConfig(),
     "small": _light("dinov2_vits14", 168, temporal=2, heads=8, channels=64),
-    "tiny": _light("vit_t14", 112, temporal=2, heads=4, channels=64),
-    "nano": _light("vit_n14", 112, temporal=1, heads=4, channels=32),
+    "tiny": _cpu("conv_t16", 112, temporal=2, channels=64),
+    "nano": _cpu("conv_n16", 96, temporal=1, channels=32),
+    "nano_vit": with_backbone(_light("vit_n14", 112, temporal=1, heads=4, channels=32), freeze=False),
 }
 """`paper` is exactly the official architecture; `small` (ViT-S/14 at 168 px, for users with the DINOv2
-S/14 weights), `tiny` (width 192, 6 blocks at 112 px) and `nano` (width 128, 4 blocks at 112 px) are
-narrower and shallower for CPU real time; tiny and nano train from scratch on a CPU."""
+S/14 weights) is narrower and shallower; `tiny` (conv width 192 at 112 px) and `nano` (conv width 128 at
+96 px) are the CPU presets of configs/tiny.yaml and configs/nano.yaml, trained from scratch (`_cpu`);
+`nano_vit` is the nano of before them (the official structure with a ViT at 112 px, configs/nano_vit.yaml),
+kept to measure against."""
 
 
 def preset(name: str) -> ModelConfig:

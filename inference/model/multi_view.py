@@ -25,11 +25,8 @@ class MultiViewEncoder(nn.Module):
     """
 
     def __init__(self, vision_encoder: VisionEncoder, width: int, heads: int, layers: int, mlp_ratio: float,
-                 dropout: float, view_dropout: float, summary_tokens: bool = False) -> None:
+                 dropout: float, view_dropout: float) -> None:
         super().__init__()
-        if summary_tokens:  # project extension: one token per view slot, appended after the fused tokens
-            self.absent_view_tokens = nn.Parameter(torch.zeros(len(VIEW_NAMES), width))
-        self.summary_tokens = summary_tokens
         self.vision_encoder = vision_encoder
         self.view_embeddings = nn.ParameterDict({v: nn.Parameter(torch.randn(1, 1, 1, width) * 0.02) for v in VIEW_NAMES})
         self.cross_view_transformer = encoder_layers(width, heads, layers, mlp_ratio, dropout)
@@ -61,10 +58,6 @@ class MultiViewEncoder(nn.Module):
             summary = torch.stack([f.mean(dim=1) for f in flat], dim=1)
             weights = torch.softmax(self.view_gate(self.cross_view_transformer(summary)).squeeze(-1), dim=-1)
             fused = sum(weights[:, i, None, None] * f for i, f in enumerate(flat)).reshape(b, t, n, d)
-        if self.summary_tokens:
-            slots = [encoded[v].mean(dim=2) if v in encoded else self.absent_view_tokens[i].expand(b, t, d)
-                     for i, v in enumerate(VIEW_NAMES)]
-            fused = torch.cat([fused, torch.stack(slots, dim=2)], dim=2)
         return self.output_norm(fused)
 
     def forward(self, views: dict[str, torch.Tensor]) -> torch.Tensor:

@@ -41,27 +41,26 @@ class JointLevelTactileDecoder(nn.Module):
 
 
 class MlpTactileDecoder(nn.Module):
-    """A project extension (`tactile_decoder.type: mlp`) with the joint-level decoder's interface: the same
-    per-joint projection to C channels, then per hand the 21 joints' features flattened → Linear(21·C, 8·C) →
-    GELU → Linear → 441 cells → sigmoid. No spatial prior and no BatchNorm."""
+    """A project extension (`tactile_decoder.type: mlp_skip`) with the joint-level decoder's interface: the same
+    per-joint projection to C channels, then per hand the 21 joints' features flattened and concatenated with
+    the hand's normalised pose input (21 × `skip` features: a direct path from the pose to the cells) →
+    Linear(21·C + 21·skip, 8·C) → GELU → Linear → 441 cells → sigmoid. No spatial prior and no BatchNorm."""
 
-    def __init__(self, width: int, channels: int, dropout: float, size: int = 21, skip: int = 0) -> None:
+    def __init__(self, width: int, channels: int, dropout: float, size: int, skip: int) -> None:
         super().__init__()
         self.channels, self.size, self.skip = channels, size, skip
         self.joint_proj = nn.Sequential(nn.Linear(width, channels), nn.GELU(), nn.Dropout(dropout))
-        self.cells = nn.Sequential(nn.Linear(21 * channels + skip, 8 * channels), nn.GELU(), nn.Dropout(dropout),
+        self.cells = nn.Sequential(nn.Linear(21 * (channels + skip), 8 * channels), nn.GELU(), nn.Dropout(dropout),
                                    nn.Linear(8 * channels, size * size), nn.Sigmoid())
 
-    def hand(self, feats: torch.Tensor, pose: torch.Tensor | None = None) -> torch.Tensor:
-        """(BT, 21, C) one hand's joint features (and with `skip`, its (BT, 21, F) normalised pose input)
-        → (BT, 1, 21, 21)."""
-        x = feats.flatten(1) if pose is None else torch.cat([feats.flatten(1), pose.flatten(1)], dim=1)
-        return self.cells(x).reshape(-1, 1, self.size, self.size)
+    def hand(self, feats: torch.Tensor, pose: torch.Tensor) -> torch.Tensor:
+        """(BT, 21, C) one hand's joint features and (BT, 21, skip) its normalised pose input → (BT, 1, 21, 21)."""
+        return self.cells(torch.cat([feats.flatten(1), pose.flatten(1)], dim=1)).reshape(-1, 1, self.size, self.size)
 
-    def forward(self, fused: torch.Tensor, pose: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(self, fused: torch.Tensor, pose: torch.Tensor) -> torch.Tensor:
+        """(B, T, 42, D) fused joint tokens and (B, T, 42, skip) normalised poses → (B, T, 2, 21, 21)."""
         b, t, j, d = fused.shape
         x = self.joint_proj(fused.reshape(b * t, j, d))
-        p = None if pose is None else pose.reshape(b * t, j, -1)
-        out = torch.cat([self.hand(x[:, :21], None if p is None else p[:, :21]),
-                         self.hand(x[:, 21:], None if p is None else p[:, 21:])], dim=1)
+        p = pose.reshape(b * t, j, -1)
+        out = torch.cat([self.hand(x[:, :21], p[:, :21]), self.hand(x[:, 21:], p[:, 21:])], dim=1)
         return out.reshape(b, t, 2, *out.shape[-2:])

@@ -28,15 +28,15 @@ class TouchAnything(nn.Module):
         width, mv, tt, pe, fu = c.embed_dim, c.multi_view, c.temporal_transformer, c.pose_encoder, c.fusion
         self.vision_encoder = VisionEncoder(backbone(c), c.vision_encoder.freeze)
         self.multi_view_encoder = MultiViewEncoder(self.vision_encoder, width, mv.num_heads, mv.num_cross_layers,
-                                                   mv.mlp_ratio, mv.dropout, mv.view_dropout_prob, mv.summary_tokens)
+                                                   mv.mlp_ratio, mv.dropout, mv.view_dropout_prob)
         self.temporal_transformer = TemporalTransformer(width, tt.num_layers, tt.num_heads, tt.mlp_ratio, tt.dropout,
                                                         tt.window_size)
         self.pose_encoder = TransformerPoseEncoder(width, pe.num_layers, pe.num_heads, pe.mlp_ratio, pe.dropout, NUM_JOINTS,
                                                    pe.input)
         self.fusion = CrossAttentionFusion(width, fu.num_layers, fu.num_heads, fu.mlp_ratio, fu.dropout)
-        if c.tactile_decoder.type.startswith("mlp"):
-            skip = 21 * self.pose_encoder.pose_scale.numel() if c.tactile_decoder.type == "mlp_skip" else 0
-            self.decoder = MlpTactileDecoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE, skip)
+        if c.tactile_decoder.type == "mlp_skip":
+            self.decoder = MlpTactileDecoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE,
+                                             self.pose_encoder.pose_scale.numel())
         else:
             self.decoder = JointLevelTactileDecoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE)
 
@@ -60,7 +60,7 @@ class TouchAnything(nn.Module):
     @property
     def frame_token_shape(self) -> tuple[int, int]:
         """(N, D) of the per-frame half's output: one token per backbone patch."""
-        return self.config.patches + (3 if self.config.multi_view.summary_tokens else 0), self.config.embed_dim
+        return self.config.patches, self.config.embed_dim
 
     @property
     def last_kept(self) -> tuple[str, ...]:
@@ -78,6 +78,6 @@ class TouchAnything(nn.Module):
     def head(self, visual: torch.Tensor, poses: torch.Tensor) -> torch.Tensor:
         """Fused visual tokens (B, T, N, D) and prepared poses (B, T, 42, 3) → (B, T, 2, 21, 21)."""
         fused = self.fusion(self.temporal_transformer(visual), self.pose_encoder(poses))
-        if getattr(self.decoder, "skip", 0):
+        if isinstance(self.decoder, MlpTactileDecoder):
             return self.decoder(fused, self.pose_encoder.normalised(poses))
         return self.decoder(fused)
