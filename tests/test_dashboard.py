@@ -119,14 +119,15 @@ def drive_controls(session: ReplaySession, dashboard: Dashboard, errors: list[st
         session.seek(200)
         session.set_views(("ego",))
         session.set_threshold(0.2)
-        session.set_model("tiny", "torch fp32")
+        session.set_model("nano_pose_only", "torch fp32")
         session.play()
-        wait_for(lambda: "running tiny" in session.state().message, "the tiny model")
+        wait_for(lambda: "running nano_pose_only" in session.state().message, "the pose-only model")
         wait_for(lambda: (p := session.state().prediction) is not None and p.views_used == ("ego",)
                  and p.frame_index > 200, "an ego-only prediction after the seek")
         state = session.state()
         assert state.cumulative is not None and state.metric_frames < 100, state.metric_frames
-        assert state.model == "tiny (torch fp32 on cpu)", state.model
+        assert state.model.startswith("nano_pose_only (pose only) — trained on simulated data; held-out V-IoU ")
+        assert state.model.endswith(" (torch fp32 on cpu)"), state.model
     except AssertionError as exc:
         errors.append(str(exc))
     finally:
@@ -169,7 +170,7 @@ def test_an_episode_without_ground_truth_shows_prediction_only(dashboard_display
 
 
 def test_a_checkpoint_for_another_preset_keeps_the_dashboard_running(dashboard_display):
-    wrong = ModelChoice(MODELS_DIR / "tiny" / "best_model.pth", MODELS_DIR / "nano" / "config.yaml")
+    wrong = ModelChoice(MODELS_DIR / "baseline_frames" / "best_model.pth", MODELS_DIR / "nano" / "config.yaml")
     result = in_fresh_process(replay_episode, sample_episodes()[0], wrong, 60, None)
     assert result["message"].startswith("no prediction:") and "best_model.pth" in result["message"]
     assert result["frames"] >= 60 and result["pressure"] is None and result["snapshot"]

@@ -20,7 +20,7 @@ SIMULATED = ModelCard("nano", "simulated EgoTouch world, 162 episodes",
 def carded_checkpoint(tmp_path, card: ModelCard | None):
     """A copy of a real bundled checkpoint (and its config) in its own folder, with `card` beside it."""
     folder = tmp_path / "model"
-    shutil.copytree("models/tiny", folder, ignore=shutil.ignore_patterns(CARD_FILE))
+    shutil.copytree("models/nano", folder, ignore=shutil.ignore_patterns(CARD_FILE))
     if card is not None:
         write_card(folder, card)
     return folder / "best_model.pth"
