@@ -15,7 +15,7 @@ from touchanything.app.sessions.engine_choice import view_set_argument
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, check_rrd_output
 from touchanything.app.sessions.rerun_trajectories import TrajectoryRecordings
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
-from touchanything.devices.episodes.episode_loader import episode_exists
+from touchanything.devices.episodes.episode_loader import episode_exists, open_episode
 from touchanything.devices.errors import UserError
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.view_sets import VIEW_HELP, VIEW_SETS, view_set_name
@@ -55,7 +55,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--batch-size", type=int, default=16, help="clips per forward pass (default 16)")
     parser.add_argument("--ego-path", choices=("frames", "views"), default="frames",
                         help="ego-only through the official frames= path (default) or the multi-view encoder")
-    parser.add_argument("--device", default="auto", help=DEVICE_HELP)
+    parser.add_argument("--device", default="auto", help=f"where the model runs: {DEVICE_HELP} (default auto)")
     parser.add_argument("--precision", default="fp32", choices=tuple(PRECISIONS),
                         help="autocast precision (the official script evaluates under fp16 on a GPU; default fp32)")
     parser.add_argument("--pose-only-baseline", nargs="?", const=True, type=Path, metavar="CHECKPOINT",
@@ -155,15 +155,21 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
     return files
 
 
+def _frame_count(path: Path) -> int:
+    with open_episode(path) as episode:
+        return episode.num_frames
+
+
 def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: str, group: ProcessGroup,
                     blank: bool = False, name: str = "", recordings: TrajectoryRecordings | None = None) -> EvaluationResult:
     """One view configuration (`blank`: its pose-only twin; `name`: a baseline's); `recordings`: each trajectory
-    into the Rerun recording. The progress bar (main process) shows encoded frames/s and trajectories done."""
-    mine = len(range(group.rank, len(files), group.world))
+    into the Rerun recording. The progress bar (main process) shows the frames encoded out of this process's
+    total, frames/s and trajectories done."""
+    mine = files[group.rank::group.world]
     finished = []
     suffix = f"_{name}" if name else "_pose_only" if blank else ""
-    with tqdm(unit=" frames", unit_scale=True, desc=f"eval {views}{suffix.replace('_', ' ')}",
-              disable=not group.is_main) as bar:
+    total = sum(_frame_count(f) for f in mine) if group.is_main else None
+    with tqdm(total=total, unit=" frames", desc=f"eval {views}{suffix.replace('_', ' ')}", disable=not group.is_main) as bar:
         def done(row, episode, prediction, gt) -> None:
             label = f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}{suffix}"
             if args.video:
@@ -171,7 +177,7 @@ def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: s
             if recordings is not None:
                 recordings.add(label, episode, prediction.stitched, gt)
             finished.append(row)
-            bar.set_postfix(trajectories=f"{len(finished)}/{mine}")
+            bar.set_postfix(trajectories=f"{len(finished)}/{len(mine)}")
 
         return evaluate(model, files, views, args.batch_size, args.ego_path, args.precision, group,
                         on_trajectory=done, on_frames=bar.update, blank=blank)

@@ -14,11 +14,12 @@ from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfi
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("simulate", help="generate simulated EgoTouch episodes (raw folders), split.json and a dataset card")
     parser.add_argument("out", type=Path, help="output root (<Scene>/<task>/<id>/ folders are written here)")
-    parser.add_argument("--episodes", type=int, required=True)
+    parser.add_argument("--episodes", type=int, required=True, help="how many episodes to generate")
     parser.add_argument("--seconds", type=float, default=10.0, help="length of each episode (default 10)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the whole dataset: the same seed gives the same "
+                                                                  "episodes and split (default 0)")
     parser.add_argument("--workers", type=int, default=1, help="episodes generated in parallel (default 1)")
-    parser.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder")
+    parser.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder (default: refuse)")
     parser.set_defaults(run=run)
 
 

@@ -48,7 +48,7 @@ class ModelChoice:
 
 def add_device_argument(parser: argparse.ArgumentParser, default: str | None = "auto") -> None:
     """`--device` for a command that runs the model (default None: the scene file's setting)."""
-    where = "" if default else " (default: the scene's [model] device, else auto)"
+    where = f" (default {default})" if default else " (default: the scene's [model] device, else auto)"
     parser.add_argument("--device", default=default, help=f"where the model runs: {DEVICE_HELP}{where}")
 
 
