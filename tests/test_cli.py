@@ -102,7 +102,9 @@ def test_convert_labels_wall_and_work_time_and_unmeasured_quality(raw_root, tmp_
     (raw_root / "Home" / "a" / "1" / "quality_issues.json").unlink()
     out_root = tmp_path / "h5"
     assert main(["convert", str(raw_root), str(out_root), "--compression-level", "1"]) == 0
-    printed = capsys.readouterr().out.splitlines()
+    captured = capsys.readouterr()
+    printed = captured.out.splitlines()
+    assert captured.err.replace("\r", "\n").count("100%") == 1  # the final progress line once in a log
     report = (out_root / "conversion_report.txt").read_text().splitlines()
     assert printed[0] == report[0]
     assert re.fullmatch(r"converted 3, skipped 0, failed 0; 60 frames in [\d.]+ s wall time \([\d.]+ frames/s\), "

@@ -4,8 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tqdm import tqdm
-
+from touchanything.app.sessions.progress_bar import ProgressBar
 from touchanything.devices.episodes.dataset_conversion import CONVERSION_REPORT, QUALITY_REPORT, convert_dataset
 from touchanything.devices.episodes.episode_loader import find_raw_episodes
 
@@ -22,12 +21,12 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     total = len(find_raw_episodes(args.raw_root)) if args.raw_root.is_dir() else 0
-    with tqdm(total=total, unit="traj", desc="convert") as bar:
+    with ProgressBar(total=total, unit="traj", desc="convert") as bar:
         frames = [0]
 
         def progress(result) -> None:
             frames[0] += result.frames
-            bar.set_postfix(frames=frames[0], failed=result.status == "failed" or None)
+            bar.set_postfix(frames=frames[0], failed=result.status == "failed" or None, refresh=False)
             bar.update(1)
             if result.status == "failed":
                 bar.write(f"failed: {result.error}")

@@ -5,8 +5,7 @@ import argparse
 import shutil
 from pathlib import Path
 
-from tqdm import tqdm
-
+from touchanything.app.sessions.progress_bar import ProgressBar
 from touchanything.devices.errors import UserError
 from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfig, check_config, percent, simulate_dataset
 
@@ -44,13 +43,13 @@ def run(args: argparse.Namespace) -> int:
     config = SimulationConfig(args.episodes, args.seconds, args.seed, args.workers)
     check_config(config)
     prepare_output(args.out, args.overwrite)
-    with tqdm(total=config.episodes, unit="episode", desc="simulate") as bar:
+    with ProgressBar(total=config.episodes, unit="episode", desc="simulate") as bar:
         frames = [0]
 
         def progress(stats) -> None:
             frames[0] += stats.frames
+            bar.set_postfix(fps=f"{frames[0] / max(bar.format_dict['elapsed'], 1e-9):.1f}", refresh=False)
             bar.update(1)
-            bar.set_postfix(fps=f"{frames[0] / max(bar.format_dict['elapsed'], 1e-9):.1f}")
 
         card = simulate_dataset(args.out, config, on_episode=progress)
     print(f"{card['episodes']} episodes, {card['frames']} frames at {card['generation_fps']} frames/s")
