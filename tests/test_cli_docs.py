@@ -9,6 +9,10 @@ from pathlib import Path
 import pytest
 
 from touchanything.app.cli import build_parser, main
+from touchanything.app.commands.eval_command import view_configurations
+from touchanything.app.commands.replay_command import selected_views
+from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.view_sets import parse_view_set, view_set_name
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 
@@ -61,3 +65,21 @@ def test_bare_touchanything_lists_the_commands(capsys):
     assert main([]) == 2
     out = capsys.readouterr().out
     assert all(f"    {name}" in out for name in subcommands()) and "required" not in out
+
+
+def test_view_names_are_one_set_for_every_command(tmp_path, capsys):
+    assert parse_view_set("ego+left") == parse_view_set("wrist_left+ego") == ("ego", "wrist_left")
+    assert parse_view_set("all") == VIEW_NAMES == parse_view_set("right+ego+left")
+    assert view_set_name(("ego", "wrist_right")) == "ego+right" and view_set_name(("wrist_left",)) == "left"
+    parser = build_parser()
+    for spelling in (["ego", "wrist_left"], ["ego", "left"], ["ego+left"], ["left+ego"]):
+        assert selected_views(parser.parse_args(["replay", "EP", "--views", *spelling])) == ("ego", "wrist_left")
+    assert selected_views(parser.parse_args(["replay", "EP"])) == VIEW_NAMES
+    evaluation = ["eval", "--checkpoint", "C", "--data", "D", "--views"]
+    assert view_configurations(parser.parse_args([*evaluation, "ego+wrist_left", "all", "ego+left"]).views) == ["ego+left", "all"]
+    assert view_configurations(parser.parse_args(evaluation[:-1]).views) == ["all"]
+    assert main([*evaluation, "left"]) == 2
+    assert "--views left: the official view configurations are ego, ego+left, ego+right, all" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["replay", str(tmp_path), "--views", "head"])
+    assert "unknown view 'head'" in capsys.readouterr().err
