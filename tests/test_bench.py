@@ -14,7 +14,13 @@ from touchanything.inference.evaluation.bench import BenchPlan, agreement, bench
 from touchanything.inference.evaluation.bench_data import latency_clip, load_episode
 from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown, gpu_settings
 from touchanything.inference.evaluation.bench_report import (
-    MIN_ACCURACY_SPAN, frontier_steps, pareto_figure, pareto_front, target_checks, write_outputs)
+    MIN_ACCURACY_SPAN,
+    frontier_steps,
+    pareto_figure,
+    pareto_front,
+    target_checks,
+    write_outputs,
+)
 from touchanything.inference.model.model_config import preset
 from touchanything.inference.model.touch_model import TouchAnything
 

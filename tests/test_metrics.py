@@ -160,7 +160,7 @@ def test_no_ground_truth_events_and_no_predicted_events_give_zero():
     assert events(timing("0000", "0011")) == (0.0, 0.0, 1, 0.0, 0.0, 0)  # a true onset, none predicted
     assert events(timing("0000", "0000")) == (0.0, 0.0, 0, 0.0, 0.0, 0)
     assert events(timing("0110", "0000")) == (0.0, 0.0, 0, 0.0, 0.0, 0)  # predicted events, no true ones
-    assert events(timing("0n", "0n")) == events(timing("0nn0", "nn00")) == (0.0, 0.0, 0, 0.0, 0.0, 0)  # 2 kept
+    assert events(timing("0n0", "0n0")) == events(timing("0nn0", "nn00")) == (0.0, 0.0, 0, 0.0, 0.0, 0)  # 2 kept
 
 
 def test_all_nan_frames_are_removed_from_the_event_sequence():

@@ -39,7 +39,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="held-out episodes with ground truth (default: the bundled sample)")
     parser.add_argument("--models", type=Path, nargs="+",
                         help="model folders holding best_model.pth (default: every bundled model)")
-    parser.add_argument("--frames", type=int, help="accuracy on the first N frames of each episode (default: every frame; 150 with --quick)")
+    parser.add_argument("--frames", type=int, help="accuracy on the first N frames of each episode (default: every frame; 150 with "
+                                                            "--quick)")
     parser.add_argument("--pose-only-baseline", action="store_true",
                         help="after each setting, its accuracy with every frame black (pose only) and the share of "
                              "each metric that vision carries")

@@ -15,6 +15,7 @@ from touchanything.devices.view_sets import VIEW_HELP
 from touchanything.inference.engine.engine_config import RUNTIMES
 from touchanything.viz.display import display_problem
 
+
 def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", type=Path, default=default_checkpoint(),
                         help="model checkpoint (default: the bundled nano model)")

@@ -4,8 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.devices.episodes.dataset_split import (
-    SPLIT_FILE, SPLIT_KEYS, SplitConfig, build_split, read_split, write_split)
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, SplitConfig, build_split, read_split, write_split
 from touchanything.devices.errors import DataError, UserError
 
 
