@@ -31,14 +31,20 @@ COMMANDS = (demo_command, info_command, simulate_command, convert_command, split
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="touchanything", description=__doc__.splitlines()[0])
-    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands",
+                                     description="`touchanything COMMAND --help` for its options")
     for command in COMMANDS:
         command.add_parser(commands)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run one command; without one, print the commands (exit status 2)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
     try:
         return args.run(args)
     except UserError as exc:

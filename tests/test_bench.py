@@ -2,17 +2,25 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
-from touchanything.app.cli import main
+from touchanything.app.cli import build_parser, main
 from touchanything.app.sessions.bundled import sample_episodes
 from touchanything.inference.evaluation.bench import BenchPlan, agreement, bench_model, naive_latency, settings_for
 from touchanything.inference.evaluation.bench_data import latency_clip, load_episode
 from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown, gpu_settings
-from touchanything.inference.evaluation.bench_report import pareto_front, target_checks, write_outputs
+from touchanything.inference.evaluation.bench_report import (
+    MIN_ACCURACY_SPAN,
+    frontier_steps,
+    pareto_figure,
+    pareto_front,
+    target_checks,
+    write_outputs,
+)
 from touchanything.inference.model.model_config import preset
 from touchanything.inference.model.touch_model import TouchAnything
 
@@ -69,6 +77,42 @@ def test_pareto_front_and_agreement_helpers():
     a = [np.array([[0.2, np.nan], [0.4, 0.0]])]
     assert agreement(a, a) == (1.0, 0.0)
     assert np.isnan(agreement([np.zeros((2, 2))], [np.zeros((2, 2))])[0])  # 0/0
+
+
+def plot_rows(points: list[tuple[float, float]]) -> list[dict]:
+    return [{"p99_ms": x, "volumetric_iou": y, "preset": "nano", "label": f"nano setting{i}"}
+            for i, (x, y) in enumerate(points)]
+
+
+def test_pareto_plot_reads_plainly_when_settings_are_nearly_equal():
+    """Two settings 7e-7 apart (the --quick run): plain tick labels, an axis at least 0.02 wide, the frontier."""
+    import matplotlib.pyplot as plt
+
+    fig = pareto_figure(plot_rows([(12.0, 0.1459300), (30.0, 0.1459307)]))
+    ax = fig.axes[0]
+    fig.canvas.draw()
+    labels = [t.get_text() for t in ax.get_yticklabels()]
+    assert ax.yaxis.get_offset_text().get_text() == "" and all("e" not in t for t in labels)
+    low, high = ax.get_ylim()
+    assert high - low >= MIN_ACCURACY_SPAN
+    frontier = next(line for line in ax.get_lines() if line.get_label() == "Pareto frontier")
+    assert list(zip(*frontier.get_data())) == [(12.0, 0.1459300), (30.0, 0.1459300), (30.0, 0.1459307)]
+    plt.close(fig)
+
+
+def test_frontier_is_a_staircase_run_on_to_the_slowest_setting():
+    assert frontier_steps([(10, 0.5), (20, 0.6), (30, 0.55), (5, 0.1)]) == [
+        (5, 0.1), (10, 0.1), (10, 0.5), (20, 0.5), (20, 0.6), (30, 0.6)]
+    assert frontier_steps([(10, 0.5), (20, 0.4)]) == [(10, 0.5), (20, 0.5)]  # one front point: a flat line
+    assert frontier_steps([]) == []
+
+
+def test_bench_writes_under_recordings_by_default_and_says_so(capsys):
+    args = build_parser().parse_args(["bench"])
+    assert args.out == Path("recordings") / "bench" and not args.out.is_absolute()
+    with pytest.raises(SystemExit):
+        main(["bench", "--help"])
+    assert "default recordings/bench in the working directory" in " ".join(capsys.readouterr().out.split())
 
 
 def test_naive_recompute_is_timed_per_frame():

@@ -1,6 +1,8 @@
 """The command line on real episode folders and HDF5 files."""
 from __future__ import annotations
 
+import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -61,6 +63,56 @@ def test_convert_info_and_split_on_a_dataset(raw_root, tmp_path, capsys):
     assert "0 raw episode(s), 3 HDF5 file(s)" in out and "split     train" in out
     assert main(["info", str(out_root / "Home" / "a" / "1.hdf5")]) == 0
     assert "Home/a/1" in capsys.readouterr().out
+
+
+def test_split_keeps_the_simulator_s_split_copied_by_convert(sim_hdf5_root, tmp_path, capsys):
+    split = sim_hdf5_root / "split.json"
+    before = split.read_text()
+    assert main(["split", str(sim_hdf5_root), "--min-frames", "10"]) == 2
+    err = capsys.readouterr().err
+    assert f"{split}: a split is already there (train " in err and "--overwrite" in err and "test_unseen" in err
+    assert split.read_text() == before
+    other = tmp_path / "other.json"
+    assert main(["split", str(sim_hdf5_root), "--min-frames", "10", "--out", str(other)]) == 0
+    assert main(["split", str(sim_hdf5_root), "--min-frames", "10", "--out", str(other), "--overwrite"]) == 0
+    assert other.read_text() != before and split.read_text() == before
+
+
+def test_info_on_a_raw_root_counts_split_files_to_convert_apart_from_missing_ones(raw_root, tmp_path, capsys):
+    """A simulated root's split.json names the .hdf5 files `convert` will write beside the raw folders."""
+    listed = {"train": ["Home/a/1.hdf5", "Home/b/2.hdf5"], "val": [], "test_seen": ["Office/c/3.hdf5"],
+              "test_unseen": ["Office/gone/9.hdf5"]}
+    (raw_root / "split.json").write_text(json.dumps(listed))
+    assert main(["info", str(raw_root)]) == 0
+    out = capsys.readouterr().out
+    assert "train 2, val 0, test_seen 1, test_unseen 1; 3 listed HDF5 file(s) to be written by `touchanything " \
+           "convert`; 1 listed file(s) missing" in out
+    (raw_root / "split.json").write_text(json.dumps(listed | {"test_unseen": []}))
+    assert main(["info", str(raw_root)]) == 0
+    assert "missing" not in capsys.readouterr().out
+    out_root = tmp_path / "h5"
+    assert main(["convert", str(raw_root), str(out_root), "--compression-level", "1"]) == 0
+    capsys.readouterr()
+    assert main(["info", str(out_root)]) == 0
+    out = capsys.readouterr().out
+    assert "split     train 2, val 0, test_seen 1, test_unseen 0\n" in out
+
+
+def test_convert_labels_wall_and_work_time_and_unmeasured_quality(raw_root, tmp_path, capsys):
+    (raw_root / "Home" / "a" / "1" / "quality_issues.json").unlink()
+    out_root = tmp_path / "h5"
+    assert main(["convert", str(raw_root), str(out_root), "--compression-level", "1"]) == 0
+    captured = capsys.readouterr()
+    printed = captured.out.splitlines()
+    assert captured.err.replace("\r", "\n").count("100%") == 1  # the final progress line once in a log
+    report = (out_root / "conversion_report.txt").read_text().splitlines()
+    assert printed[0] == report[0]
+    assert re.fullmatch(r"converted 3, skipped 0, failed 0; 60 frames in [\d.]+ s wall time \([\d.]+ frames/s\), "
+                        r"[\d.]+ s of work summed over trajectories \([\d.]+ frames/s per worker\)", report[0])
+    quality = (out_root / "quality_report.txt").read_text()
+    assert "-1" not in quality
+    assert "1.hdf5: wilor valid 100.0%, duplicate wrist frames left not measured right not measured" in quality
+    assert "2.hdf5: wilor valid 100.0%, duplicate wrist frames left 0.01 right 0.30" in quality
 
 
 def test_convert_failure_exit_status(raw_root, tmp_path, capsys):

@@ -159,6 +159,8 @@ def test_no_ground_truth_events_and_no_predicted_events_give_zero():
     assert events(timing("1100", "1111")) == (0.0, 0.0, 0, 0.0, 0.0, 0)  # a predicted offset, none true
     assert events(timing("0000", "0011")) == (0.0, 0.0, 1, 0.0, 0.0, 0)  # a true onset, none predicted
     assert events(timing("0000", "0000")) == (0.0, 0.0, 0, 0.0, 0.0, 0)
+    assert events(timing("0110", "0000")) == (0.0, 0.0, 0, 0.0, 0.0, 0)  # predicted events, no true ones
+    assert events(timing("0n0", "0n0")) == events(timing("0nn0", "nn00")) == (0.0, 0.0, 0, 0.0, 0.0, 0)  # 2 kept
 
 
 def test_all_nan_frames_are_removed_from_the_event_sequence():
@@ -184,10 +186,27 @@ def test_frame_precision_recall_f1_by_hand():
     assert (m["temporal_precision"], m["temporal_recall"], m["temporal_f1"], m["temporal_support"]) == (0.0, 0.0, 0.0, 2)
 
 
-def test_no_ground_truth_contact_frame_gives_nan_precision_recall_f1():
-    m = timing("110", "000")
+def detection(m: dict[str, float]) -> tuple:
+    return m["temporal_precision"], m["temporal_recall"], m["temporal_f1"], m["temporal_support"]
+
+
+@pytest.mark.parametrize("pred, gt", [("110", "000"), ("000", "000"), ("1n0", "0n0"), ("0", "0"), ("1nn", "0nn")])
+def test_valid_frames_without_ground_truth_contact_give_zeros_as_the_official_function(pred, gt):
+    """official temporal_f1_score: precision tp/(tp+fp) or 0.0 when nothing is predicted, recall 0.0, F1 0.0"""
+    assert detection(timing(pred, gt)) == (0.0, 0.0, 0.0, 0)
+
+
+@pytest.mark.parametrize("pred, gt", [("", ""), ("1", "n"), ("0n", "nn"), ("111", "nnn")])
+def test_no_valid_ground_truth_frame_gives_nan_precision_recall_f1(pred, gt):
+    m = timing(pred, gt)
     assert all(math.isnan(m[k]) for k in ("temporal_precision", "temporal_recall", "temporal_f1"))
     assert m["temporal_support"] == 0
+
+
+def test_a_contact_free_trajectory_counts_as_zero_in_the_average():
+    out = aggregate([timing("0011", "0011"), timing("1100", "0000"), timing("nn", "nn")])
+    assert out["temporal_f1"] == pytest.approx(0.5) and out["temporal_precision"] == pytest.approx(0.5)
+    assert out["temporal_support"] == pytest.approx(2 / 3)
 
 
 def test_a_predicted_event_takes_the_first_unmatched_true_event():

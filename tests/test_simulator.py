@@ -155,3 +155,10 @@ def test_simulate_refuses_a_non_empty_output_and_an_unwritable_one(tmp_path, cap
 def test_simulation_config_is_checked():
     with pytest.raises(UserError):
         simulate_dataset("unused", SimulationConfig(episodes=1, seconds=float("nan")))
+
+
+def test_simulate_prints_its_final_progress_line_once(tmp_path, capsys):
+    """In a log (stderr not a terminal) every bar update is one line: 100 % must appear once, not three times."""
+    assert main(["simulate", str(tmp_path / "out"), "--episodes", "2", "--seconds", "1"]) == 0
+    lines = capsys.readouterr().err.replace("\r", "\n").splitlines()
+    assert sum("100%" in line for line in lines) == 1 and sum("2/2" in line for line in lines) == 1

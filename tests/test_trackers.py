@@ -122,7 +122,7 @@ def test_connect_without_openvr_says_how_to_install_it():
     with pytest.raises(UserError) as error:
         trackers.connect()
     assert str(error.value) == INSTALL_HINT
-    assert str(error.value) == "OpenVR trackers need the `openvr` package: pip install 'touchanything[trackers]'"
+    assert str(error.value) == "OpenVR trackers need the `openvr` package: .venv/bin/pip install -e '.[trackers]' in the checkout"
     assert not trackers.is_connected and trackers.status() == "disconnected" and trackers.latest() is None
     assert not [t for t in threading.enumerate() if t.name.endswith(" reader")]
 

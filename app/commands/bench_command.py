@@ -12,7 +12,7 @@ from pathlib import Path
 import onnxruntime
 import torch
 
-from touchanything.app.sessions.bundled import MODELS_DIR, SAMPLE_DIR, bundled_models
+from touchanything.app.sessions.bundled import MODELS_DIR, OUTPUT_DIR, SAMPLE_DIR, bundled_models
 from touchanything.app.sessions.engine_choice import add_device_argument
 from touchanything.devices.errors import UserError
 from touchanything.inference.evaluation.bench import BenchPlan, bench_model
@@ -32,12 +32,15 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("bench", help="measure latency, memory and accuracy of every engine setting")
     parser.add_argument("--quick", action="store_true",
                         help="smallest bundled model (torch fp32, ONNX int8) and the paper preset's cache gain")
-    parser.add_argument("--out", type=Path, default=Path("docs/bench"), help="folder for engine.{json,md} and the plot")
+    parser.add_argument("--out", type=Path, default=OUTPUT_DIR / "bench",
+                        help=f"folder for engine.{{json,md}} and the plot (default {OUTPUT_DIR / 'bench'} in the working "
+                             "directory; the committed results are docs/bench)")
     parser.add_argument("--data", type=Path, default=SAMPLE_DIR,
                         help="held-out episodes with ground truth (default: the bundled sample)")
     parser.add_argument("--models", type=Path, nargs="+",
                         help="model folders holding best_model.pth (default: every bundled model)")
-    parser.add_argument("--frames", type=int, help="accuracy on the first N frames of each episode (quick: 150)")
+    parser.add_argument("--frames", type=int, help="accuracy on the first N frames of each episode (default: every frame; 150 with "
+                                                            "--quick)")
     parser.add_argument("--pose-only-baseline", action="store_true",
                         help="after each setting, its accuracy with every frame black (pose only) and the share of "
                              "each metric that vision carries")

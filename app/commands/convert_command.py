@@ -4,8 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tqdm import tqdm
-
+from touchanything.app.sessions.progress_bar import ProgressBar
 from touchanything.devices.episodes.dataset_conversion import CONVERSION_REPORT, QUALITY_REPORT, convert_dataset
 from touchanything.devices.episodes.episode_loader import find_raw_episodes
 
@@ -22,24 +21,20 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     total = len(find_raw_episodes(args.raw_root)) if args.raw_root.is_dir() else 0
-    with tqdm(total=total, unit="traj", desc="convert") as bar:
+    with ProgressBar(total=total, unit="traj", desc="convert") as bar:
         frames = [0]
 
         def progress(result) -> None:
             frames[0] += result.frames
-            bar.set_postfix(frames=frames[0], failed=result.status == "failed" or None)
+            bar.set_postfix(frames=frames[0], failed=result.status == "failed" or None, refresh=False)
             bar.update(1)
             if result.status == "failed":
                 bar.write(f"failed: {result.error}")
 
         results = convert_dataset(args.raw_root, args.out_root, args.workers, args.compression_level,
                                   args.skip_existing, on_result=progress)
-        elapsed = bar.format_dict["elapsed"]
-    done = [r for r in results if r.status == "converted"]
-    failed = [r for r in results if r.status == "failed"]
-    n_frames = sum(r.frames for r in done)
-    rate = n_frames / elapsed if elapsed else 0.0
-    print(f"converted {len(done)}, skipped {len(results) - len(done) - len(failed)}, failed {len(failed)}; "
-          f"{n_frames} frames at {rate:.1f} frames/s")
-    print(f"reports: {args.out_root / CONVERSION_REPORT}, {args.out_root / QUALITY_REPORT}")
-    return 1 if failed else 0
+    report = args.out_root / CONVERSION_REPORT
+    print(  # the report's summary line: the same numbers, labelled wall time and per worker
+        report.read_text().splitlines()[0])
+    print(f"reports: {report}, {args.out_root / QUALITY_REPORT}")
+    return 1 if any(r.status == "failed" for r in results) else 0

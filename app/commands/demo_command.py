@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.app.sessions.bundled import SAMPLE_DIR, sample_episodes
+from touchanything.app.sessions.bundled import OUTPUT_DIR, SAMPLE_DIR, sample_episodes
 from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint
 from touchanything.app.sessions.replay_runs import replay_in_dashboard, replay_to_video
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
@@ -13,14 +13,16 @@ from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.display import display_problem
 
-DEMO_VIDEO = SAMPLE_DIR.parent / "demo.mp4"
+DEMO_VIDEO = OUTPUT_DIR / "demo.mp4"
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("demo", help="the bundled sample through the bundled model in the dashboard")
-    parser.add_argument("episode", type=Path, nargs="?", help="episode folder or .hdf5 (default: the bundled sample)")
+    parser.add_argument("episode", type=Path, nargs="?", help="raw episode folder, .hdf5 trajectory, or any video file "
+                                                              "(hands estimated from its frames; default: the bundled sample)")
     parser.add_argument("--headless", action="store_true", help="write the comparison video instead of a window")
-    parser.add_argument("--out", type=Path, default=DEMO_VIDEO, help=f"video for --headless (default: {DEMO_VIDEO})")
+    parser.add_argument("--out", type=Path, default=DEMO_VIDEO,
+                        help=f"video for --headless (default {DEMO_VIDEO} in the working directory)")
     parser.add_argument("--hand3d", action="store_true", help="add the pressure painted on 3D hands (measured | "
                                                               "predicted) to the comparison video (default: off)")
     add_device_argument(parser)

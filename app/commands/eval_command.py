@@ -11,13 +11,15 @@ import numpy as np
 from tqdm import tqdm
 
 from touchanything.app.sessions.bundled import BASELINES, MODELS_DIR, bundled_baselines
+from touchanything.app.sessions.engine_choice import view_set_argument
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, check_rrd_output
 from touchanything.app.sessions.rerun_trajectories import TrajectoryRecordings
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
-from touchanything.devices.episodes.episode_loader import episode_exists
+from touchanything.devices.episodes.episode_loader import episode_exists, open_episode
 from touchanything.devices.errors import UserError
 from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.inference.evaluation.evaluation import VIEW_SETS, EvaluationResult, evaluate, vision_share_summary
+from touchanything.devices.view_sets import VIEW_HELP, VIEW_SETS, view_set_name
+from touchanything.inference.evaluation.evaluation import EvaluationResult, evaluate, vision_share_summary
 from touchanything.inference.evaluation.metrics import DETECTION_METRICS, EVENT_METRICS, METRICS
 from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.models import TactileModel
@@ -39,18 +41,21 @@ TIMING_COLUMNS = DETECTION_METRICS[:3] + EVENT_METRICS[:4]
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("eval", help="evaluate a checkpoint with the official metric protocol")
-    parser.add_argument("--checkpoint", type=Path, required=True)
+    parser.add_argument("--checkpoint", type=Path, required=True,
+                        help="model checkpoint in the official format (best_model.pth, last.pth, …)")
     parser.add_argument("--config", type=Path, help="config.yaml (default: beside the checkpoint)")
     parser.add_argument("--data", type=Path, required=True, help="HDF5 root holding split.json")
-    parser.add_argument("--split", default="test_seen", choices=SPLIT_KEYS)
+    parser.add_argument("--split", default="test_seen", choices=SPLIT_KEYS, help="which list of the split file "
+                                                                                 "(default test_seen)")
     parser.add_argument("--split-file", type=Path, help="split file (default: DATA/split.json)")
-    parser.add_argument("--views", nargs="+", default=["all"], choices=list(VIEW_SETS),
-                        help="one or more view configurations (default all)")
-    parser.add_argument("--num-traj", type=int, help="only the first N trajectories of the split")
-    parser.add_argument("--batch-size", type=int, default=16, help="clips per forward pass")
+    parser.add_argument("--views", nargs="+", default=[VIEW_SETS["all"]], type=view_set_argument, metavar="VIEWS",
+                        help=f"one or more view configurations, each evaluated on its own: ego, ego+left, ego+right, "
+                             f"all ({VIEW_HELP}; default all)")
+    parser.add_argument("--num-traj", type=int, help="only the first N trajectories of the split (default: all)")
+    parser.add_argument("--batch-size", type=int, default=16, help="clips per forward pass (default 16)")
     parser.add_argument("--ego-path", choices=("frames", "views"), default="frames",
                         help="ego-only through the official frames= path (default) or the multi-view encoder")
-    parser.add_argument("--device", default="auto", help=DEVICE_HELP)
+    parser.add_argument("--device", default="auto", help=f"where the model runs: {DEVICE_HELP} (default auto)")
     parser.add_argument("--precision", default="fp32", choices=tuple(PRECISIONS),
                         help="autocast precision (the official script evaluates under fp16 on a GPU; default fp32)")
     parser.add_argument("--pose-only-baseline", nargs="?", const=True, type=Path, metavar="CHECKPOINT",
@@ -150,15 +155,21 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
     return files
 
 
+def _frame_count(path: Path) -> int:
+    with open_episode(path) as episode:
+        return episode.num_frames
+
+
 def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: str, group: ProcessGroup,
                     blank: bool = False, name: str = "", recordings: TrajectoryRecordings | None = None) -> EvaluationResult:
     """One view configuration (`blank`: its pose-only twin; `name`: a baseline's); `recordings`: each trajectory
-    into the Rerun recording. The progress bar (main process) shows encoded frames/s and trajectories done."""
-    mine = len(range(group.rank, len(files), group.world))
+    into the Rerun recording. The progress bar (main process) shows the frames encoded out of this process's
+    total, frames/s and trajectories done."""
+    mine = files[group.rank::group.world]
     finished = []
     suffix = f"_{name}" if name else "_pose_only" if blank else ""
-    with tqdm(unit=" frames", unit_scale=True, desc=f"eval {views}{suffix.replace('_', ' ')}",
-              disable=not group.is_main) as bar:
+    total = sum(_frame_count(f) for f in mine) if group.is_main else None
+    with tqdm(total=total, unit=" frames", desc=f"eval {views}{suffix.replace('_', ' ')}", disable=not group.is_main) as bar:
         def done(row, episode, prediction, gt) -> None:
             label = f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}{suffix}"
             if args.video:
@@ -166,7 +177,7 @@ def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: s
             if recordings is not None:
                 recordings.add(label, episode, prediction.stitched, gt)
             finished.append(row)
-            bar.set_postfix(trajectories=f"{len(finished)}/{mine}")
+            bar.set_postfix(trajectories=f"{len(finished)}/{len(mine)}")
 
         return evaluate(model, files, views, args.batch_size, args.ego_path, args.precision, group,
                         on_trajectory=done, on_frames=bar.update, blank=blank)
@@ -203,7 +214,18 @@ def baseline_models(args: argparse.Namespace, device) -> dict[str, tuple[Path, T
     return {name: (path, load_model(path).to(device)) for name, path in checkpoints.items()}
 
 
+def view_configurations(chosen: list[tuple[str, ...]]) -> list[str]:
+    """The official configuration names of the `--views` values, each once, in the given order; a set that is
+    not one of them (every configuration includes ego) is a user error."""
+    names = list(dict.fromkeys(view_set_name(views) for views in chosen))
+    if odd := [n for n in names if n not in VIEW_SETS]:
+        raise UserError(f"--views {odd[0]}: the official view configurations are {', '.join(VIEW_SETS)} "
+                        "(ego is always in)")
+    return names
+
+
 def run(args: argparse.Namespace) -> int:
+    configurations = view_configurations(args.views)
     if args.batch_size < 1:
         raise UserError(f"--batch-size must be at least 1, got {args.batch_size}")
     if args.video and not args.out:
@@ -230,7 +252,7 @@ def run(args: argparse.Namespace) -> int:
     results = []
     recordings = args.rerun and TrajectoryRecordings(args.rerun, TactileLayout.default().bend, {"checkpoint": str(args.checkpoint)})
     try:
-        for views in args.views:
+        for views in configurations:
             results.append(_evaluate_views(args, model, files, views, group, recordings=recordings))
             if baseline_model is not None:
                 results.append(_evaluate_views(args, baseline_model, files, views, group, blank=True, recordings=recordings))

@@ -15,7 +15,7 @@ from touchanything.inference.model.checkpoint import load_model
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("export-onnx", help="export a checkpoint's streaming graphs to ONNX (fp32, int8)")
-    parser.add_argument("--checkpoint", type=Path, required=True)
+    parser.add_argument("--checkpoint", type=Path, required=True, help="model checkpoint in the official format")
     parser.add_argument("--config", type=Path, help="config.yaml (default: beside the checkpoint)")
     parser.add_argument("--out", type=Path, required=True, help="output folder (encoder/head graphs, engine.json)")
     parser.add_argument("--int8", action="store_true", help="also write int8 graphs (dynamic quantisation)")

@@ -21,11 +21,11 @@ def broken_column(text: str) -> tuple[str, int]:
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("grids", help="compute pressure_grids.npz of episodes from their jq_pressure.json")
-    parser.add_argument("episodes", type=Path, nargs="+", help="raw episode folders")
+    parser.add_argument("episodes", type=Path, nargs="+", metavar="EPISODE", help="raw episode folders")
     parser.add_argument("--layout", type=Path, help="folder with the two mapping files and hand_joint_positions.json "
                         "(default: the project's own layout)")
     parser.add_argument("--repair-column", type=broken_column, action="append", default=[], metavar="HAND:COLUMN",
-                        help="interpolate a broken display column from its neighbours (repeatable)")
+                        help="interpolate a broken display column from its neighbours (repeatable; default: none)")
     parser.add_argument("--min-scale", type=float, default=TactileConfig.min_scale,
                         help="smallest normalisation divisor in raw units (default 25)")
     parser.set_defaults(run=run)

@@ -18,7 +18,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                                                                 "episode's chest.mp4)")
     parser.add_argument("--mirror", action="store_true", help="the video is mirrored (a selfie webcam): swap the "
                                                               "left and right labels")
-    parser.add_argument("--overwrite", action="store_true", help="replace --out when it exists")
+    parser.add_argument("--overwrite", action="store_true", help="replace --out when it exists (default: refuse)")
     parser.set_defaults(run=run)
 
 

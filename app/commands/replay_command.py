@@ -6,24 +6,27 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint
+from touchanything.app.sessions.bundled import OUTPUT_DIR
+from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint, view_set_argument
 from touchanything.app.sessions.replay_runs import replay_in_dashboard, replay_to_video
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
 from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.view_sets import VIEW_HELP
 from touchanything.inference.engine.engine_config import RUNTIMES
 from touchanything.viz.display import display_problem
-
-RECORDINGS = Path("recordings")
 
 
 def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", type=Path, default=default_checkpoint(),
                         help="model checkpoint (default: the bundled nano model)")
     parser.add_argument("--config", type=Path, help="config.yaml (default: beside the checkpoint)")
-    parser.add_argument("--views", nargs="+", default=list(VIEW_NAMES), choices=VIEW_NAMES,
-                        help="views the model uses (ego is required for a prediction; default: all three)")
-    parser.add_argument("--runtime", default="torch", choices=list(RUNTIMES))
-    parser.add_argument("--precision", default="fp32", help="torch: fp32, bf16 (fp16 on GPU); onnx: fp32, int8")
+    parser.add_argument("--views", nargs="+", default=[VIEW_NAMES], type=view_set_argument, metavar="VIEWS",
+                        help=f"views the model uses, one or more ({VIEW_HELP}; ego is required for a prediction; "
+                             "default all)")
+    parser.add_argument("--runtime", default="torch", choices=list(RUNTIMES),
+                        help="torch, or onnx (ONNX Runtime on the CPU; the model is exported on first use into the user "
+                             "cache; default torch)")
+    parser.add_argument("--precision", default="fp32", help="torch: fp32, bf16 (fp16 on GPU); onnx: fp32, int8 (default fp32)")
     add_device_argument(parser)
 
 
@@ -35,7 +38,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     add_engine_arguments(parser)
     parser.add_argument("--headless", action="store_true", help="no window: write the comparison video instead")
     parser.add_argument("--out", type=Path, help="the comparison video to write (.mp4; implies --headless; "
-                                                  "default recordings/<trajectory>_replay.mp4)")
+                                                  f"default {OUTPUT_DIR}/<trajectory>_replay.mp4 in the working directory)")
     parser.add_argument("--hand3d", action="store_true", help="add the pressure painted on 3D hands (measured | "
                                                               "predicted) to the comparison video (default: off)")
     add_rerun_arguments(parser)
@@ -47,13 +50,14 @@ def model_choice(args: argparse.Namespace) -> ModelChoice:
 
 
 def selected_views(args: argparse.Namespace) -> tuple[str, ...]:
-    return tuple(v for v in VIEW_NAMES if v in args.views)
+    """The union of the `--views` values, in the official order."""
+    return tuple(v for v in VIEW_NAMES if any(v in views for views in args.views))
 
 
 def default_video(path: Path) -> Path:
     """recordings/<trajectory folder, or file name without its suffix>_replay.mp4"""
     name = path.resolve().name
-    return RECORDINGS / f"{Path(name).stem if path.is_file() else name}_replay.mp4"
+    return OUTPUT_DIR / f"{Path(name).stem if path.is_file() else name}_replay.mp4"
 
 
 def run(args: argparse.Namespace) -> int:

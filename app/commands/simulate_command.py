@@ -5,8 +5,7 @@ import argparse
 import shutil
 from pathlib import Path
 
-from tqdm import tqdm
-
+from touchanything.app.sessions.progress_bar import ProgressBar
 from touchanything.devices.errors import UserError
 from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfig, check_config, percent, simulate_dataset
 
@@ -14,11 +13,12 @@ from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfi
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("simulate", help="generate simulated EgoTouch episodes (raw folders), split.json and a dataset card")
     parser.add_argument("out", type=Path, help="output root (<Scene>/<task>/<id>/ folders are written here)")
-    parser.add_argument("--episodes", type=int, required=True)
+    parser.add_argument("--episodes", type=int, required=True, help="how many episodes to generate")
     parser.add_argument("--seconds", type=float, default=10.0, help="length of each episode (default 10)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the whole dataset: the same seed gives the same "
+                                                                  "episodes and split (default 0)")
     parser.add_argument("--workers", type=int, default=1, help="episodes generated in parallel (default 1)")
-    parser.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder")
+    parser.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder (default: refuse)")
     parser.set_defaults(run=run)
 
 
@@ -43,13 +43,13 @@ def run(args: argparse.Namespace) -> int:
     config = SimulationConfig(args.episodes, args.seconds, args.seed, args.workers)
     check_config(config)
     prepare_output(args.out, args.overwrite)
-    with tqdm(total=config.episodes, unit="episode", desc="simulate") as bar:
+    with ProgressBar(total=config.episodes, unit="episode", desc="simulate") as bar:
         frames = [0]
 
         def progress(stats) -> None:
             frames[0] += stats.frames
+            bar.set_postfix(fps=f"{frames[0] / max(bar.format_dict['elapsed'], 1e-9):.1f}", refresh=False)
             bar.update(1)
-            bar.set_postfix(fps=f"{frames[0] / max(bar.format_dict['elapsed'], 1e-9):.1f}")
 
         card = simulate_dataset(args.out, config, on_episode=progress)
     print(f"{card['episodes']} episodes, {card['frames']} frames at {card['generation_fps']} frames/s")

@@ -4,26 +4,45 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, SplitConfig, build_split, write_split
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, SplitConfig, build_split, read_split, write_split
+from touchanything.devices.errors import DataError, UserError
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("split", help="build split.json (train/val/test_seen/test_unseen) for an HDF5 root")
-    parser.add_argument("hdf5_root", type=Path)
+    parser.add_argument("hdf5_root", type=Path, help="folder holding <Scene>/<task>/<id>.hdf5 trajectories")
     parser.add_argument("--out", type=Path, help="split file to write (default HDF5_ROOT/split.json)")
-    parser.add_argument("--seed", type=int, default=SplitConfig.seed)
+    parser.add_argument("--seed", type=int, default=SplitConfig.seed, help="shuffle seed (default 42)")
     parser.add_argument("--unseen-ratio", type=float, default=SplitConfig.unseen_ratio,
                         help="share of each scene's tasks held out as test_unseen (default 0.05)")
-    parser.add_argument("--min-frames", type=int, default=SplitConfig.min_frames)
-    parser.add_argument("--min-wilor-valid", type=float, default=SplitConfig.min_wilor_valid)
+    parser.add_argument("--min-frames", type=int, default=SplitConfig.min_frames,
+                        help="shorter trajectories are left out (default 30)")
+    parser.add_argument("--min-wilor-valid", type=float, default=SplitConfig.min_wilor_valid,
+                        help="trajectories with a smaller share of pose-valid frames are left out (default 0.3)")
     parser.add_argument("--absolute", action="store_true", help="write absolute paths, as the official tool does")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing split file (default: refuse; `convert` copies a split shipped "
+                             "with the raw data, e.g. the simulator's object-aware one)")
     parser.set_defaults(run=run)
 
 
+def check_output(out: Path, overwrite: bool) -> None:
+    """Refuse to replace an existing split file without `overwrite`, naming it and what it holds."""
+    if not out.exists() or overwrite:
+        return
+    try:
+        held = ", ".join(f"{k} {len(v)}" for k, v in read_split(out).items())
+    except DataError:
+        held = "unreadable"
+    raise UserError(f"{out}: a split is already there ({held}); keep it, or pass --overwrite to replace it "
+                    "or --out FILE to write another")
+
+
 def run(args: argparse.Namespace) -> int:
+    out = args.out or args.hdf5_root / SPLIT_FILE
+    check_output(out, args.overwrite)
     config = SplitConfig(args.seed, args.unseen_ratio, args.min_frames, args.min_wilor_valid)
     split, excluded = build_split(args.hdf5_root, config)
-    out = args.out or args.hdf5_root / SPLIT_FILE
     write_split(out, split, absolute=args.absolute)
     print(f"{out}: " + ", ".join(f"{k} {len(split[k])}" for k in SPLIT_KEYS) + f"; excluded {len(excluded)}")
     for path, reason in excluded.items():

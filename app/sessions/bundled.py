@@ -1,5 +1,5 @@
 """What ships with the checkout: the bundled models under `models/` and the sample episodes under
-`recordings/sample/`."""
+`recordings/sample/`; and the default output folder."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,6 +9,9 @@ from touchanything.devices.episodes.episode_loader import find_raw_episodes
 ROOT = Path(__file__).resolve().parents[2]
 MODELS_DIR = ROOT / "models"
 SAMPLE_DIR = ROOT / "recordings" / "sample"
+OUTPUT_DIR = Path("recordings")
+"""Where every command, and the dashboard's Record and Screenshot buttons, write when not told where:
+`recordings/` in the working directory (from the checkout, the git-ignored folder beside the sample)."""
 
 
 def bundled_models() -> dict[str, Path]:

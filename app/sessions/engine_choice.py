@@ -9,6 +9,7 @@ from pathlib import Path
 import torch
 
 from touchanything.app.sessions.bundled import MODELS_DIR, bundled_models
+from touchanything.devices.view_sets import parse_view_set
 from touchanything.inference.engine.engine_config import EngineConfig
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.checkpoint import load_model
@@ -48,8 +49,16 @@ class ModelChoice:
 
 def add_device_argument(parser: argparse.ArgumentParser, default: str | None = "auto") -> None:
     """`--device` for a command that runs the model (default None: the scene file's setting)."""
-    where = "" if default else " (default: the scene's [model] device, else auto)"
+    where = f" (default {default})" if default else " (default: the scene's [model] device, else auto)"
     parser.add_argument("--device", default=default, help=f"where the model runs: {DEVICE_HELP}{where}")
+
+
+def view_set_argument(text: str) -> tuple[str, ...]:
+    """argparse type of every `--views` value: `parse_view_set`, its error as the usage message."""
+    try:
+        return parse_view_set(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def default_checkpoint() -> Path:

@@ -17,6 +17,7 @@ from touchanything.devices.episodes.episode_loader import (
     open_episode,
 )
 from touchanything.devices.episodes.lerobot_episode import find_lerobot_episodes
+from touchanything.devices.episodes.raw_episode import is_raw_episode
 from touchanything.devices.errors import DataError, UserError
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 from touchanything.devices.tactile_layout import TactileLayout
@@ -104,10 +105,17 @@ def dataset_lines(root: Path) -> list[str]:
     split_path = root / SPLIT_FILE
     if split_path.exists():
         try:
-            split = read_split(split_path)
-            missing = sum(not episode_exists(p) for key in SPLIT_KEYS for p in split[key])
-            lines.append("split     " + ", ".join(f"{k} {len(split[k])}" for k in SPLIT_KEYS)
-                         + (f"; {missing} listed file(s) missing" if missing else ""))
+            lines.append(_split_line(read_split(split_path)))
         except DataError as exc:
             lines.append(f"split     unreadable: {exc}")
     return lines
+
+
+def _split_line(split: dict[str, list[Path]]) -> str:
+    """The split's counts; a listed `<id>.hdf5` beside the raw folder `<id>/` it will be converted from (a
+    simulated or raw root's split names the files `convert` writes) is "to convert", not missing."""
+    absent = [p for key in SPLIT_KEYS for p in split[key] if not episode_exists(p)]
+    to_convert = sum(p.suffix == ".hdf5" and is_raw_episode(p.with_suffix("")) for p in absent)
+    notes = [f"{to_convert} listed HDF5 file(s) to be written by `touchanything convert`" if to_convert else "",
+             f"{len(absent) - to_convert} listed file(s) missing" if len(absent) > to_convert else ""]
+    return "split     " + ", ".join(f"{k} {len(split[k])}" for k in SPLIT_KEYS) + "".join(f"; {n}" for n in notes if n)

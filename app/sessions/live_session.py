@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.app.sessions.bundled import OUTPUT_DIR
 from touchanything.app.sessions.engine_choice import ModelChoice
 from touchanything.app.sessions.engine_session import EngineSession
 from touchanything.app.sessions.scene_rig import LiveRig
@@ -18,7 +19,8 @@ from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.viz.dashboard.dashboard_state import SourceStatus
 
-RECORDINGS = Path("recordings") / "live"
+RECORDINGS = OUTPUT_DIR / "live"
+"""Where the dashboard's Record button writes a live session (the screenshots go to recordings/screenshots)."""
 
 
 class LiveSession(EngineSession):

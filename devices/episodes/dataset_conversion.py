@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import shutil
+import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -33,6 +34,7 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
         out_root.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"{out_root}: cannot create the output folder ({exc.strerror})") from None
+    started = time.perf_counter()
     results, todo = [], []
     for folder in folders:
         target = output_path(folder, raw_root, out_root)
@@ -46,7 +48,7 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
         results.append(result)
         on_result and on_result(result)
     results.sort(key=lambda r: str(r.source))
-    write_reports(out_root, results)
+    write_reports(out_root, results, time.perf_counter() - started)
     copy_split(raw_root, out_root)
     return results
 
@@ -70,15 +72,24 @@ def _run(todo: list[tuple[Path, Path]], workers: int, level: int):
             yield future.result()
 
 
-def write_reports(out_root: Path, results: list[ConversionResult]) -> None:
-    """`conversion_report.txt` (status per trajectory) and `quality_report.txt` (problems, quality)."""
+def summary_line(results: list[ConversionResult], wall_seconds: float) -> str:
+    """Counts, then the speed twice, each labelled: frames per second of wall time (what the user waited) and
+    per worker (frames over the work time summed over trajectories; lower with several workers)."""
     counts = {s: sum(r.status == s for r in results) for s in ("converted", "skipped", "failed")}
     frames = sum(r.frames for r in results)
-    seconds = sum(r.seconds for r in results)
-    lines = [f"converted {counts['converted']}, skipped {counts['skipped']}, failed {counts['failed']}; "
-             f"{frames} frames in {seconds:.1f} s of work ({frames / seconds if seconds else 0:.1f} frames/s)", ""]
+    work = sum(r.seconds for r in results)
+    return (f"converted {counts['converted']}, skipped {counts['skipped']}, failed {counts['failed']}; "
+            f"{frames} frames in {wall_seconds:.1f} s wall time ({frames / wall_seconds if wall_seconds else 0:.1f} "
+            f"frames/s), {work:.1f} s of work summed over trajectories ({frames / work if work else 0:.1f} frames/s "
+            "per worker)")
+
+
+def write_reports(out_root: Path, results: list[ConversionResult], wall_seconds: float) -> None:
+    """`conversion_report.txt` (`summary_line`, then the status per trajectory) and `quality_report.txt`
+    (problems, quality; a ratio the raw folder does not give reads "not measured")."""
+    lines = [summary_line(results, wall_seconds), ""]
     for r in results:
-        detail = r.error if r.status == "failed" else f"{r.frames} frames, {r.seconds:.1f} s"
+        detail = r.error if r.status == "failed" else f"{r.frames} frames, {r.seconds:.1f} s of work"
         lines.append(f"{r.status:9s} {r.source} -> {r.output}: {detail}")
     (out_root / CONVERSION_REPORT).write_text("\n".join(lines) + "\n")
     quality = []
@@ -87,6 +98,12 @@ def write_reports(out_root: Path, results: list[ConversionResult]) -> None:
             continue
         q = r.quality
         quality.append(f"{r.output}: wilor valid {q.get('wilor_valid_ratio', 0):.1%}, duplicate wrist frames "
-                       f"left {q.get('left', -1):.2f} right {q.get('right', -1):.2f}")
+                       f"left {_measured(q.get('left', -1))} right {_measured(q.get('right', -1))}")
         quality += [f"  problem: {p}" for p in r.problems]
     (out_root / QUALITY_REPORT).write_text("\n".join(quality) + "\n")
+
+
+def _measured(ratio: float) -> str:
+    """A duplicate-frame ratio as text; negative (the official "unknown", no `quality_issues.json`) → "not
+    measured"."""
+    return f"{ratio:.2f}" if ratio >= 0 else "not measured"

@@ -1,6 +1,6 @@
 """HTC Vive trackers through OpenVR (a running SteamVR): the poses of the configured trackers by role.
 
-`openvr` is an optional dependency (`pip install 'touchanything[trackers]'`), imported only in connect().
+`openvr` is an optional dependency (`.venv/bin/pip install -e '.[trackers]'` in the checkout), imported only in connect().
 Each poll asks OpenVR for every device's pose in the standing universe, keeps the generic trackers with
 a valid pose, names them by serial number and maps serial → role (chest, left_wrist, right_wrist).
 
@@ -34,7 +34,7 @@ from touchanything.devices.hardware.threaded_source import (
 from touchanything.devices.snapshot import TRACKER_ROLES
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
-INSTALL_HINT = "OpenVR trackers need the `openvr` package: pip install 'touchanything[trackers]'"
+INSTALL_HINT = "OpenVR trackers need the `openvr` package: .venv/bin/pip install -e '.[trackers]' in the checkout"
 
 
 @dataclass(frozen=True)

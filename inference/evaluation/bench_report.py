@@ -92,7 +92,26 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
             if not any((a <= x and b >= y) and (a < x or b > y) for a, b in points)]
 
 
-def pareto_plot(rows: list[dict], path: Path) -> None:
+MIN_ACCURACY_SPAN = 0.02
+"""The plot's accuracy axis spans at least this much, so that settings a few 1e-7 apart read as equal."""
+
+
+def frontier_steps(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The Pareto frontier as a staircase through the front's points (latency ascending), run on to the slowest
+    point's latency: below and right of it every setting is beaten. One front point gives a flat line."""
+    front = sorted(points[i] for i in pareto_front(points))
+    if not front:
+        return []
+    steps = [front[0]]
+    for x, y in front[1:]:
+        steps += [(x, steps[-1][1]), (x, y)]
+    right = max(x for x, _ in points)
+    return steps + [(right, front[-1][1])] if right > steps[-1][0] else steps
+
+
+def pareto_figure(rows: list[dict]):
+    """The latency / accuracy plot of the rows with both measured (a matplotlib Figure): one colour per preset,
+    the frontier, plain tick labels on both axes (no offset notation)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -106,20 +125,32 @@ def pareto_plot(rows: list[dict], path: Path) -> None:
     for preset in sorted({r["preset"] for r in measured}):
         chosen = [p for p, r in zip(points, measured) if r["preset"] == preset]
         ax.scatter(*zip(*chosen), label=preset, s=28)
-    front = sorted(points[i] for i in pareto_front(points))
-    if front:
-        ax.plot(*zip(*front), "k--", lw=1, label="Pareto front")
+    if steps := frontier_steps(points):
+        ax.plot(*zip(*steps), "k--", lw=1, label="Pareto frontier")
     for (x, y), r in zip(points, measured):
         ax.annotate(r["label"].split(" ", 1)[1], (x, y), fontsize=6, xytext=(3, 2), textcoords="offset points")
     ax.axvline(P99_TARGET_MS, color="grey", lw=0.8, ls=":")
     ax.set_xscale("log")
     ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
     ax.xaxis.set_minor_formatter(matplotlib.ticker.ScalarFormatter())
+    if points:
+        low, high = min(y for _, y in points), max(y for _, y in points)
+        pad = max(MIN_ACCURACY_SPAN - (high - low), 0.0) / 2 + 0.05 * (high - low)
+        ax.set_ylim(low - pad, high + pad)
+    ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter(useOffset=False))
     ax.set_xlabel("p99 per-frame engine latency (ms, log scale)")
     ax.set_ylabel("volumetric IoU (official, held-out episodes)")
     ax.set_title("TouchAnything streaming engine: latency against accuracy")
     ax.legend(fontsize=8)
     fig.tight_layout()
+    return fig
+
+
+def pareto_plot(rows: list[dict], path: Path) -> None:
+    """`pareto_figure` saved as PNG."""
+    import matplotlib.pyplot as plt
+
+    fig = pareto_figure(rows)
     fig.savefig(path)
     plt.close(fig)
 

@@ -20,15 +20,13 @@ import torch.distributed as dist
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.devices.view_sets import VIEW_SETS
 from touchanything.inference.evaluation.metrics import MetricAccumulator, aggregate, ground_truth_for_metrics
 from touchanything.inference.evaluation.trajectory_prediction import TrajectoryPrediction, predict_trajectory
 from touchanything.inference.evaluation.vision_share import vision_shares
 from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.torch_device import ProcessGroup
-
-VIEW_SETS = {"ego": ("ego",), "ego+left": ("ego", "wrist_left"), "ego+right": ("ego", "wrist_right"), "all": VIEW_NAMES}
 
 
 def trajectory_metrics(prediction: np.ndarray, gt: np.ndarray, bend: np.ndarray) -> dict[str, float]:

@@ -13,7 +13,10 @@ Also computed per trajectory by the official module but not reported (`EXTRA_MET
 temporal accuracy "may be inflated" and recommends F1). "Kept frames" are the frames whose ground truth is not
 all NaN, in order (an all-NaN frame is removed from the sequence); the contact flags are temporal accuracy's:
 - temporal precision TP/(TP+FP), recall TP/(TP+FN), F1 2PR/(P+R) over kept frames, each 0.0 when its
-  denominator is 0; support = TP+FN (ground-truth contact frames). Support 0 → precision, recall, F1 NaN.
+  denominator is 0; support = TP+FN (ground-truth contact frames). Only a trajectory with no kept frame gives
+  NaN precision, recall and F1 (support 0); kept frames without any contact give recall 0.0, F1 0.0 and
+  precision 0.0 (FP / FP has TP = 0; nothing predicted has denominator 0), as the official
+  `temporal_f1_score` does.
 - onsets (no contact at t−1 → contact at t) and offsets (contact → no contact), t counted in the kept-frame
   sequence. Taking predicted events in time order, each matches the first not-yet-matched ground-truth event
   of its kind within ±2 positions. Precision = matched / predicted events, recall = matched / ground-truth
@@ -78,10 +81,10 @@ def reported_metrics(s: dict) -> dict[str, float]:
 
 
 def detection_metrics(sums: dict) -> dict[str, float]:
-    """Per-frame contact precision, recall, F1 and support from an accumulator's sums; with no ground-truth
-    contact frame the three ratios are NaN and the support 0."""
+    """Per-frame contact precision, recall, F1 and support from an accumulator's sums; with no kept frame
+    (every ground-truth frame all NaN) the three ratios are NaN and the support 0."""
     tp, fp, support = sums["tp"], sums["fp"], int(sums["tp"] + sums["fn"])
-    if support == 0:
+    if sums["judged"] == 0:
         return dict.fromkeys(DETECTION_METRICS[:3], float("nan")) | {"temporal_support": 0}
     precision, recall = _fraction(tp, tp + fp), _fraction(tp, support)
     return {"temporal_precision": precision, "temporal_recall": recall,

@@ -1,0 +1,85 @@
+"""The command line says what README's command table says: the same commands, positionals and options both
+ways; every option has help text that states its default; bare `touchanything` lists the commands."""
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+import pytest
+
+from touchanything.app.cli import build_parser, main
+from touchanything.app.commands.eval_command import view_configurations
+from touchanything.app.commands.replay_command import selected_views
+from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.view_sets import parse_view_set, view_set_name
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def subcommands() -> dict[str, argparse.ArgumentParser]:
+    action = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(action.choices)
+
+
+def readme_rows() -> dict[str, str]:
+    """command → the usage cell of its row in README's command table."""
+    rows = {}
+    for line in README.read_text().splitlines():
+        if match := re.match(r"\| `touchanything ([a-z-]+)(.*?)` \|", line):
+            rows[match[1]] = match[2]
+    return rows
+
+
+def options(parser: argparse.ArgumentParser) -> set[str]:
+    return {s for a in parser._actions for s in a.option_strings if s.startswith("--") and s != "--help"}
+
+
+def positionals(parser: argparse.ArgumentParser) -> list[str]:
+    return [a.metavar or a.dest.upper() for a in parser._actions if not a.option_strings]
+
+
+def test_readme_table_has_every_command_and_only_those():
+    assert set(readme_rows()) == set(subcommands())
+
+
+@pytest.mark.parametrize("command", sorted(subcommands()))
+def test_readme_row_names_the_same_options_and_positionals_as_help(command):
+    cell, parser = readme_rows()[command], subcommands()[command]
+    assert set(re.findall(r"--[a-z0-9][a-z0-9-]*", cell)) == options(parser)
+    for name in positionals(parser):
+        assert re.search(rf"\b{re.escape(name)}\b", cell), f"{command}: positional {name} not in README's row"
+
+
+@pytest.mark.parametrize("command", sorted(subcommands()))
+def test_every_option_has_help_stating_its_default(command):
+    for action in subcommands()[command]._actions:
+        if not action.option_strings or action.dest == "help":
+            continue
+        assert action.help, f"{command} {action.option_strings[0]}: no help text"
+        if action.default not in (None, False) and not action.required:
+            assert "default" in action.help, f"{command} {action.option_strings[0]}: help does not state the default"
+
+
+def test_bare_touchanything_lists_the_commands(capsys):
+    assert main([]) == 2
+    out = capsys.readouterr().out
+    assert all(f"    {name}" in out for name in subcommands()) and "required" not in out
+
+
+def test_view_names_are_one_set_for_every_command(tmp_path, capsys):
+    assert parse_view_set("ego+left") == parse_view_set("wrist_left+ego") == ("ego", "wrist_left")
+    assert parse_view_set("all") == VIEW_NAMES == parse_view_set("right+ego+left")
+    assert view_set_name(("ego", "wrist_right")) == "ego+right" and view_set_name(("wrist_left",)) == "left"
+    parser = build_parser()
+    for spelling in (["ego", "wrist_left"], ["ego", "left"], ["ego+left"], ["left+ego"]):
+        assert selected_views(parser.parse_args(["replay", "EP", "--views", *spelling])) == ("ego", "wrist_left")
+    assert selected_views(parser.parse_args(["replay", "EP"])) == VIEW_NAMES
+    evaluation = ["eval", "--checkpoint", "C", "--data", "D", "--views"]
+    assert view_configurations(parser.parse_args([*evaluation, "ego+wrist_left", "all", "ego+left"]).views) == ["ego+left", "all"]
+    assert view_configurations(parser.parse_args(evaluation[:-1]).views) == ["all"]
+    assert main([*evaluation, "left"]) == 2
+    assert "--views left: the official view configurations are ego, ego+left, ego+right, all" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["replay", str(tmp_path), "--views", "head"])
+    assert "unknown view 'head'" in capsys.readouterr().err
