@@ -1,29 +1,32 @@
-"""Turn `touchanything eval` results into the findings tables of docs/findings.md: the paper's Table 2 layout
-with the pose-only rows, what vision adds over the pose, the spread between two training seeds, and the
-view-dropout ablation.
+"""Turn `touchanything eval` results into the findings tables of docs/findings.md: every model beside the
+baselines, the two seeds' spread, what vision adds over the pose (the pose-only rows), the views, and the
+paper's Table 2 layout for the bundled model.
 
-    .venv/bin/python scripts/findings_table.py data/eval MODEL SECOND_SEED NO_DROPOUT [OTHER_MODEL ...]
+    .venv/bin/python scripts/findings_table.py data/runs nano nano_seed7 --others nano_pose_only baseline_pose baseline_frames
 
-reads data/eval/<model>/<split>/results.json (written by `eval --pose-only-baseline …`) for the splits
-test_seen and test_unseen and prints Markdown.
+reads RUNS/<model>/eval_<split>/results.json (written by scripts/train_bundled_models.sh) for the splits
+test_seen and test_unseen and prints Markdown. The first model is the bundled one, the second its other seed.
 """
 from __future__ import annotations
 
+import argparse
 import json
 import math
-import sys
 from pathlib import Path
 
 VIEWS = ("ego", "ego+left", "ego+right", "all")
 SPLITS = ("test_seen", "test_unseen")
-COLUMNS = (("temporal_accuracy", "TA"), ("contact_iou", "C-IoU"), ("volumetric_iou", "V-IoU"), ("mae", "MAE"))
+COLUMNS = (("volumetric_iou", "V-IoU"), ("contact_iou", "C-IoU"), ("temporal_accuracy", "TA"), ("mae", "MAE"))
 POSE_ONLY = " (pose only)"
 
 
-def load(root: Path, model: str, split: str, mode: str = "stitched") -> dict:
-    """{views or "views (pose only)": {scene: {metric: value}}} of one results.json."""
-    data = json.loads((root / model / split / "results.json").read_text())
-    return {r["views"] + (POSE_ONLY if r.get("pose_only") else ""): r[mode] for r in data["results"]}
+def load(root: Path, model: str, split: str, mode: str) -> dict:
+    """{views or "views (pose only)": {scene: {metric: value}}} of one results.json ({} when absent)."""
+    path = root / model / f"eval_{split}" / "results.json"
+    if not path.is_file():
+        return {}
+    data = json.loads(path.read_text())
+    return {r["views"] + (POSE_ONLY if r.get("pose_only") else ""): r[mode] for r in data["results"] if not r.get("baseline")}
 
 
 def cell(value: float | None) -> str:
@@ -34,57 +37,70 @@ def overall(results: dict, views: str, key: str) -> float:
     return results.get(views, {}).get("overall", {}).get(key, math.nan)
 
 
+def models_table(root: Path, models: list[str], mode: str) -> list[str]:
+    """All views, overall: every model and baseline on both test splits."""
+    header = " | ".join(f"{split.split('_')[1]} {name}" for split in SPLITS for _, name in COLUMNS)
+    lines = [f"| model | {header} |", "|---|" + "---|" * (2 * len(COLUMNS))]
+    for model in models:
+        results = {split: load(root, model, split, mode) for split in SPLITS}
+        lines.append(f"| {model} | " + " | ".join(cell(overall(results[s], "all", k)) for s in SPLITS for k, _ in COLUMNS) + " |")
+    return lines
+
+
+def vision_table(root: Path, models: list[str], mode: str) -> list[str]:
+    """Frames + pose against the pose-only rows (nano_pose_only on black frames), all views, overall."""
+    lines = ["| model | split | V-IoU frames + pose | V-IoU pose only | Δ V-IoU | C-IoU frames + pose | C-IoU pose only | "
+             "Δ C-IoU |", "|---|---|---|---|---|---|---|---|"]
+    for model in models:
+        for split in SPLITS:
+            r = load(root, model, split, mode)
+            v, vb = overall(r, "all", "volumetric_iou"), overall(r, "all" + POSE_ONLY, "volumetric_iou")
+            c, cb = overall(r, "all", "contact_iou"), overall(r, "all" + POSE_ONLY, "contact_iou")
+            lines.append(f"| {model} | {split} | {cell(v)} | {cell(vb)} | {cell(v - vb)} | {cell(c)} | {cell(cb)} | {cell(c - cb)} |")
+    return lines
+
+
+def views_table(root: Path, models: list[str], mode: str) -> list[str]:
+    """V-IoU / C-IoU per view set, overall."""
+    lines = ["| model | split | " + " | ".join(VIEWS) + " | all − ego |", "|---|---|" + "---|" * (len(VIEWS) + 1)]
+    for model in models:
+        for split in SPLITS:
+            r = load(root, model, split, mode)
+            cells = [f"{cell(overall(r, v, 'volumetric_iou'))} / {cell(overall(r, v, 'contact_iou'))}" for v in VIEWS]
+            gain = (f"{cell(overall(r, 'all', 'volumetric_iou') - overall(r, 'ego', 'volumetric_iou'))} / "
+                    f"{cell(overall(r, 'all', 'contact_iou') - overall(r, 'ego', 'contact_iou'))}")
+            lines.append(f"| {model} | {split} | " + " | ".join(cells) + f" | {gain} |")
+    return lines
+
+
 def table2(root: Path, model: str, mode: str) -> list[str]:
+    """The paper's Table 2 layout: scene × views, both splits."""
     results = {split: load(root, model, split, mode) for split in SPLITS}
     header = " | ".join(f"{split.split('_')[1]} {name}" for split in SPLITS for _, name in COLUMNS)
     lines = [f"| scene | views | {header} |", "|---|---|" + "---|" * (2 * len(COLUMNS))]
     scenes = ["overall"] + sorted({s for r in results.values() for v in r.values() for s in v} - {"overall"})
     for scene in scenes:
         for views in (v + suffix for v in VIEWS for suffix in ("", POSE_ONLY)):
-            if not any(views in results[split] for split in SPLITS):
-                continue
-            cells = [cell(results[split].get(views, {}).get(scene, {}).get(key, math.nan)) for split in SPLITS for key, _ in COLUMNS]
-            lines.append(f"| {scene} | {views} | " + " | ".join(cells) + " |")
-    return lines
-
-
-def vision_table(root: Path, models: list[str]) -> list[str]:
-    """Frames + pose against the pose-only rows, all views, overall, official stitched."""
-    lines = ["| model | split | C-IoU frames + pose | C-IoU pose only | Δ C-IoU | V-IoU frames + pose | V-IoU pose only | "
-             "Δ V-IoU | TA frames + pose | TA pose only |", "|---|---|---|---|---|---|---|---|---|---|"]
-    for model in models:
-        for split in SPLITS:
-            r = load(root, model, split)
-            c, cb = overall(r, "all", "contact_iou"), overall(r, "all" + POSE_ONLY, "contact_iou")
-            v, vb = overall(r, "all", "volumetric_iou"), overall(r, "all" + POSE_ONLY, "volumetric_iou")
-            t, tb = overall(r, "all", "temporal_accuracy"), overall(r, "all" + POSE_ONLY, "temporal_accuracy")
-            lines.append(f"| {model} | {split} | {cell(c)} | {cell(cb)} | {cell(c - cb)} | {cell(v)} | {cell(vb)} | "
-                         f"{cell(v - vb)} | {cell(t)} | {cell(tb)} |")
-    return lines
-
-
-def views_table(root: Path, models: list[str], label: dict[str, str]) -> list[str]:
-    """All views against ego only per model (the seeds' spread, the dropout ablation)."""
-    lines = ["| training | split | V-IoU all views | V-IoU ego only | ΔV (all − ego) | C-IoU all | C-IoU ego | "
-             "ΔC (all − ego) |", "|---|---|---|---|---|---|---|---|"]
-    for model in models:
-        for split in SPLITS:
-            r = load(root, model, split)
-            v_all, v_ego = overall(r, "all", "volumetric_iou"), overall(r, "ego", "volumetric_iou")
-            c_all, c_ego = overall(r, "all", "contact_iou"), overall(r, "ego", "contact_iou")
-            lines.append(f"| {label.get(model, model)} | {split} | {cell(v_all)} | {cell(v_ego)} | {cell(v_all - v_ego)} | "
-                         f"{cell(c_all)} | {cell(c_ego)} | {cell(c_all - c_ego)} |")
+            if any(views in results[split] for split in SPLITS):
+                cells = [cell(results[s].get(views, {}).get(scene, {}).get(k, math.nan)) for s in SPLITS for k, _ in COLUMNS]
+                lines.append(f"| {scene} | {views} | " + " | ".join(cells) + " |")
     return lines
 
 
 def main() -> None:
-    root, model, seed, no_dropout, *others = Path(sys.argv[1]), *sys.argv[2:]
-    sections = [("Table 2 layout, official stitched", table2(root, model, "stitched")),
-                ("Table 2 layout, causal newest frame", table2(root, model, "causal")),
-                ("What vision adds over the pose (all views, stitched)", vision_table(root, [model, seed, no_dropout, *others])),
-                ("Views and seeds", views_table(root, [model, seed, no_dropout, *others],
-                                                {model: f"{model} (view dropout)", seed: f"{seed} (view dropout)",
-                                                 no_dropout: f"{no_dropout} (no view dropout)"}))]
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", type=Path)
+    parser.add_argument("model")
+    parser.add_argument("second_seed")
+    parser.add_argument("--others", nargs="*", default=[], help="baselines and other models for the first table")
+    args = parser.parse_args()
+    seeds = [args.model, args.second_seed]
+    sections = [("Models and baselines (all views, overall, causal)", models_table(args.runs, seeds + args.others, "causal")),
+                ("Models and baselines (all views, overall, official stitched)", models_table(args.runs, seeds + args.others, "stitched")),
+                ("What vision adds over the pose (all views, causal)", vision_table(args.runs, seeds, "causal")),
+                ("Views: V-IoU / C-IoU (causal)", views_table(args.runs, seeds, "causal")),
+                (f"Table 2 layout for {args.model}, causal newest frame", table2(args.runs, args.model, "causal")),
+                (f"Table 2 layout for {args.model}, official stitched", table2(args.runs, args.model, "stitched"))]
     for title, lines in sections:
         print(f"### {title}\n")
         print("\n".join(lines) + "\n")

@@ -17,6 +17,7 @@ import pytest
 from helpers.hand_video import HANDS_DIR, background, reference_image, write_hand_video
 from touchanything.app.cli import main
 from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, default_checkpoint
+from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.devices.camera_pose.estimator import STAGE, CameraPoseConfig, HandPoseEstimator
 from touchanything.devices.camera_pose.model_file import installed_model_path
 from touchanything.devices.episodes.episode_loader import open_episode
@@ -157,8 +158,26 @@ def test_replay_of_a_plain_video_headless(hand_video, tmp_path, capsys):
     assert line.startswith("poses     camera estimate: ") and counts[2] == FRAMES
     assert counts[0] >= FRAMES - EMPTY - 2 and counts[1] >= FRAMES - EMPTY - 2, line
     assert " ms per frame (p99 " in line
+    model_line = next(line for line in printed.splitlines() if line.startswith("model     "))
+    assert "— trained on simulated data; held-out V-IoU " in model_line, model_line
+    assert "note      illustrative only: bare-hand poses from the camera" in printed
     with VideoReader(out) as video:
         assert video.num_frames == FRAMES and video.read(FRAMES - 1).shape == (806, 1440, 3)
+
+
+def test_the_dashboard_says_a_camera_pose_prediction_is_illustrative(hand_video):
+    choice = ModelChoice(default_checkpoint())
+    with open_episode(hand_video) as episode:
+        session = ReplaySession(episode, build_engine(choice, VIEW_NAMES), choice, pose_source="camera").start()
+        try:
+            deadline = time.monotonic() + 60
+            while session.state().snapshot is None and time.monotonic() < deadline:
+                time.sleep(0.05)
+            model = session.state().model
+        finally:
+            session.close()
+    assert model.startswith("nano — trained on simulated data") and model.endswith(
+        " — illustrative only: bare-hand poses from the camera, model trained on simulated gloved hands"), model
 
 
 # --- poses to a WiLoR file ----------------------------------------------------------------------------------------
