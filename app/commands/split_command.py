@@ -4,7 +4,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, SplitConfig, build_split, write_split
+from touchanything.devices.episodes.dataset_split import (
+    SPLIT_FILE,
+    SPLIT_KEYS,
+    SplitConfig,
+    build_split,
+    is_split_file,
+    write_split,
+)
+from touchanything.devices.output_safety import add_overwrite_argument, check_output
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -17,13 +25,15 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--min-frames", type=int, default=SplitConfig.min_frames)
     parser.add_argument("--min-wilor-valid", type=float, default=SplitConfig.min_wilor_valid)
     parser.add_argument("--absolute", action="store_true", help="write absolute paths, as the official tool does")
+    add_overwrite_argument(parser, "--out (a file other than an earlier split file)")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     config = SplitConfig(args.seed, args.unseen_ratio, args.min_frames, args.min_wilor_valid)
-    split, excluded = build_split(args.hdf5_root, config)
     out = args.out or args.hdf5_root / SPLIT_FILE
+    check_output(out, (args.hdf5_root,), args.overwrite, own=is_split_file)
+    split, excluded = build_split(args.hdf5_root, config)
     write_split(out, split, absolute=args.absolute)
     print(f"{out}: " + ", ".join(f"{k} {len(split[k])}" for k in SPLIT_KEYS) + f"; excluded {len(excluded)}")
     for path, reason in excluded.items():

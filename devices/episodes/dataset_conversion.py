@@ -10,6 +10,7 @@ from touchanything.devices.episodes.dataset_split import SPLIT_FILE
 from touchanything.devices.episodes.episode_loader import find_raw_episodes
 from touchanything.devices.episodes.hdf5_convert import ConversionResult, convert_trajectory, output_path
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import check_report_folder, replacing, write_text
 
 CONVERSION_REPORT = "conversion_report.txt"
 QUALITY_REPORT = "quality_report.txt"
@@ -29,10 +30,7 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
     folders = find_raw_episodes(raw_root)
     if not folders:
         raise UserError(f"{raw_root}: no trajectories found (folders holding chest.mp4, up to 4 levels deep)")
-    try:
-        out_root.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"{out_root}: cannot create the output folder ({exc.strerror})") from None
+    check_report_folder(out_root, (CONVERSION_REPORT, QUALITY_REPORT), (raw_root,))
     results, todo = [], []
     for folder in folders:
         target = output_path(folder, raw_root, out_root)
@@ -56,7 +54,8 @@ def copy_split(raw_root: Path, out_root: Path) -> None:
     an existing one there is kept."""
     source, target = raw_root / SPLIT_FILE, out_root / SPLIT_FILE
     if source.is_file() and not target.exists():
-        shutil.copyfile(source, target)
+        with replacing(target) as temporary:
+            shutil.copyfile(source, temporary)
 
 
 def _run(todo: list[tuple[Path, Path]], workers: int, level: int):
@@ -80,7 +79,7 @@ def write_reports(out_root: Path, results: list[ConversionResult]) -> None:
     for r in results:
         detail = r.error if r.status == "failed" else f"{r.frames} frames, {r.seconds:.1f} s"
         lines.append(f"{r.status:9s} {r.source} -> {r.output}: {detail}")
-    (out_root / CONVERSION_REPORT).write_text("\n".join(lines) + "\n")
+    write_text(out_root / CONVERSION_REPORT, "\n".join(lines) + "\n")
     quality = []
     for r in results:
         if r.status != "converted":
@@ -89,4 +88,4 @@ def write_reports(out_root: Path, results: list[ConversionResult]) -> None:
         quality.append(f"{r.output}: wilor valid {q.get('wilor_valid_ratio', 0):.1%}, duplicate wrist frames "
                        f"left {q.get('left', -1):.2f} right {q.get('right', -1):.2f}")
         quality += [f"  problem: {p}" for p in r.problems]
-    (out_root / QUALITY_REPORT).write_text("\n".join(quality) + "\n")
+    write_text(out_root / QUALITY_REPORT, "\n".join(quality) + "\n")
