@@ -61,9 +61,10 @@ def check_output(out: Path, inputs: Iterable[Path | None] = (), overwrite: bool 
     for given, source in _inputs(inputs):
         if target == source:
             raise UserError(f"{out}: is an input of this command ({given}); choose another output")
-        if whole and target in source.parents:
-            raise UserError(f"{out}: holds the input {given}; choose a folder outside it")
-        if source in target.parents and target.exists() and not own(target):
+        if whole and (target in source.parents or (source in target.parents and target.is_dir())):
+            raise UserError(f"{out}: {'holds' if target in source.parents else 'is a folder of'} the input {given}; "
+                            "choose a folder outside it")
+        if source in target.parents and target.exists() and not target.is_dir() and not own(target):
             raise UserError(f"{out}: would replace a file of the input {given} that touchanything did not write; "
                             "choose a path outside it")
     if folder or whole:

@@ -4,7 +4,6 @@ writing command with its output pointed at each of its inputs."""
 from __future__ import annotations
 
 import hashlib
-import os
 import resource
 import shutil
 import signal
@@ -13,11 +12,13 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from touchanything.app.cli import main
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import PARTIAL, check_output, replacing, replacing_folder, write_text
+from touchanything.viz.comparison_video import is_comparison_video, write_comparison_video
 
 REPO = Path(__file__).resolve().parents[1]
 SCENE = REPO / "scenes" / "sim.toml"
@@ -86,7 +87,7 @@ def test_check_output_cases(tmp_path):
     (tmp_path / "link.mp4").symlink_to(episode / "chest.mp4")
     (tmp_path / "other.txt").write_text("someone's")
     (tmp_path / "file").write_text("")
-    refused = {episode: "is an input", tmp_path / "link.mp4": "is an input",
+    refused = {episode: "is an input", tmp_path / "link.mp4": "did not write",
                episode / "chest.mp4": "did not write", episode / ".." / "ep" / "chest.mp4": "did not write",
                tmp_path / "other.txt": "exists; pass --overwrite", tmp_path: "is a folder",
                tmp_path / "file" / "out.txt": "cannot be created"}
@@ -148,7 +149,7 @@ def limited_run(args: list[str], max_bytes: int) -> subprocess.CompletedProcess:
         resource.setrlimit(resource.RLIMIT_FSIZE, (max_bytes, resource.RLIM_INFINITY))
 
     return subprocess.run([sys.executable, "-m", "touchanything.app.cli", *args], capture_output=True, text=True,
-                          preexec_fn=limit, timeout=300)
+                          preexec_fn=limit, timeout=300, cwd=Path(__file__).parent)
 
 
 @pytest.mark.parametrize("command", ["grids", "split"])
@@ -230,15 +231,10 @@ def test_grids_refuses_a_grids_file_that_links_to_its_input(episode_dir, capsys)
 
 
 def test_an_earlier_comparison_video_is_replaced_another_is_not(episode_dir, tmp_path, capsys):
-    from touchanything.viz.comparison_video import is_comparison_video, write_comparison_video
-
-    import numpy as np
-
     video = tmp_path / "out.mp4"
     write_comparison_video(video, (np.zeros((16, 16, 3), np.uint8) for _ in range(3)))
     assert is_comparison_video(video) and not is_comparison_video(episode_dir / "chest.mp4")
     other = shutil.copy(episode_dir / "chest.mp4", tmp_path / "theirs.mp4")
     assert main(["replay", str(episode_dir), "--out", str(other)]) == 2
     assert "exists; pass --overwrite" in one_line(capsys)
-    os.utime(video, (0, 0))
     check_output(video, [episode_dir], own=is_comparison_video)  # passes: replaced without --overwrite

@@ -7,7 +7,6 @@ from pathlib import Path
 from tqdm import tqdm
 
 from touchanything.devices.episodes.dataset_conversion import CONVERSION_REPORT, QUALITY_REPORT, convert_dataset
-from touchanything.devices.episodes.episode_loader import find_raw_episodes
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -21,20 +20,24 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    total = len(find_raw_episodes(args.raw_root)) if args.raw_root.is_dir() else 0
-    with tqdm(total=total, unit="traj", desc="convert") as bar:
-        frames = [0]
+    bars: list[tqdm] = []  # the bar appears once the inputs and outputs were checked (an error is one line)
+    frames = [0]
 
-        def progress(result) -> None:
-            frames[0] += result.frames
-            bar.set_postfix(frames=frames[0], failed=result.status == "failed" or None)
-            bar.update(1)
-            if result.status == "failed":
-                bar.write(f"failed: {result.error}")
+    def progress(result) -> None:
+        frames[0] += result.frames
+        bars[0].set_postfix(frames=frames[0], failed=result.status == "failed" or None)
+        bars[0].update(1)
+        if result.status == "failed":
+            bars[0].write(f"failed: {result.error}")
 
+    try:
         results = convert_dataset(args.raw_root, args.out_root, args.workers, args.compression_level,
-                                  args.skip_existing, on_result=progress)
-        elapsed = bar.format_dict["elapsed"]
+                                  args.skip_existing, on_result=progress,
+                                  on_start=lambda total: bars.append(tqdm(total=total, unit="traj", desc="convert")))
+        elapsed = bars[0].format_dict["elapsed"]
+    finally:
+        for bar in bars:
+            bar.close()
     done = [r for r in results if r.status == "converted"]
     failed = [r for r in results if r.status == "failed"]
     n_frames = sum(r.frames for r in done)

@@ -18,8 +18,10 @@ QUALITY_REPORT = "quality_report.txt"
 
 def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compression_level: int = 4,
                     skip_existing: bool = False,
-                    on_result: Callable[[ConversionResult], None] | None = None) -> list[ConversionResult]:
-    """Convert every trajectory under `raw_root`; one bad trajectory never stops the others."""
+                    on_result: Callable[[ConversionResult], None] | None = None,
+                    on_start: Callable[[int], None] | None = None) -> list[ConversionResult]:
+    """Convert every trajectory under `raw_root`; one bad trajectory never stops the others. `on_start(n)`:
+    once the inputs and outputs were checked, with the number of trajectories found."""
     raw_root, out_root = Path(raw_root), Path(out_root)
     if not raw_root.is_dir():
         raise UserError(f"{raw_root}: raw root folder not found")
@@ -31,6 +33,7 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
     if not folders:
         raise UserError(f"{raw_root}: no trajectories found (folders holding chest.mp4, up to 4 levels deep)")
     check_report_folder(out_root, (CONVERSION_REPORT, QUALITY_REPORT), (raw_root,))
+    on_start and on_start(len(folders))
     results, todo = [], []
     for folder in folders:
         target = output_path(folder, raw_root, out_root)

@@ -14,7 +14,6 @@ picture for a frame without it (as a rig that keeps the latest frame of every ca
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
