@@ -26,7 +26,8 @@ from pathlib import Path
 from touchanything.devices.errors import UserError
 
 PARTIAL = ".partial-"
-"""In the name of every temporary output: `.<name>.partial-<pid><suffix>` beside the output."""
+"""In the name of every temporary output: `.<name>.partial-<pid>` beside the output (hidden, and with no suffix
+of its own, so no reader takes a half-written `.hdf5` or `.mp4` for data)."""
 
 
 def add_overwrite_argument(parser: argparse.ArgumentParser, what: str) -> None:
@@ -110,10 +111,10 @@ def describe(exc: OSError) -> str:
 
 
 def temporary_path(path: Path) -> Path:
-    """The hidden temporary name of `path` in its folder, with its suffix (writers that choose the format by
-    the suffix see the right one)."""
+    """The hidden temporary name of `path` in its folder (a writer that chooses the format by the suffix must
+    be told the format)."""
     path = Path(path)
-    return path.with_name(f".{path.name}{PARTIAL}{os.getpid()}{path.suffix}")
+    return path.with_name(f".{path.name}{PARTIAL}{os.getpid()}")
 
 
 def _remove(path: Path) -> None:

@@ -24,7 +24,7 @@ class TrajectoryRecordings:
         self.out = out
         self.bend = bend
         self.properties = properties
-        self.parts_dir = temporary_path(out).with_suffix(".parts")
+        self.parts_dir = temporary_path(out.with_suffix(".parts"))
         self.parts: list[Path] = []
 
     def add(self, name: str, episode: Episode, predicted: np.ndarray, truth: np.ndarray) -> None:

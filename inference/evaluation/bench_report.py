@@ -125,7 +125,7 @@ def pareto_plot(rows: list[dict], path: Path) -> None:
     ax.set_title("TouchAnything streaming engine: latency against accuracy")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path)
+    fig.savefig(path, format="png")
     plt.close(fig)
 
 
