@@ -17,7 +17,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--seconds", type=float, default=10.0, help="length of each episode (default 10)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=1, help="episodes generated in parallel (default 1)")
-    add_overwrite_argument(parser, "a non-empty OUT (once the new dataset is complete)")
+    add_overwrite_argument(parser, "a non-empty OUT (only once the new dataset is complete)")
     parser.set_defaults(run=run)
 
 
