@@ -201,7 +201,7 @@ def test_pose_writes_a_wilor_file_the_episode_reader_takes(hand_video, tmp_path,
         assert np.array_equal(episode.wilor.valid, np.array([v for _, v in estimated]))
         np.testing.assert_allclose(episode.wilor.joints, np.array([j for j, _ in estimated]), atol=1e-6)
     assert main(["pose", str(folder / "chest.mp4"), "--out", str(out)]) == 2
-    assert capsys.readouterr().err == f"touchanything pose: error: {out}: already exists; pass --overwrite to replace it\n"
+    assert capsys.readouterr().err == f"touchanything pose: error: {out}: exists; pass --overwrite to replace it\n"
 
 
 # --- user errors: one line each --------------------------------------------------------------------------------

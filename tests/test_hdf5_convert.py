@@ -69,7 +69,7 @@ def test_dataset_conversion_with_workers_reports_and_skip_existing(tmp_path):
     failed = next(r for r in results if r.status == "failed")
     assert "wilor_hands.json" in failed.error
     assert (tmp_path / "h5" / "Home" / "a" / "1.hdf5").is_file()
-    assert not list((tmp_path / "h5").rglob("*.partial"))
+    assert not list((tmp_path / "h5").rglob("*.partial*"))
     report = (tmp_path / "h5" / "conversion_report.txt").read_text()
     assert report.startswith("converted 3, skipped 0, failed 1") and "frames/s" in report
     assert "wilor valid" in (tmp_path / "h5" / "quality_report.txt").read_text()
@@ -81,7 +81,7 @@ def test_conversion_never_leaves_a_partial_file(episode_dir, tmp_path):
     (episode_dir / "left.mp4").write_bytes(b"garbage" * 50)
     result = convert_trajectory(episode_dir, tmp_path / "x.hdf5")
     assert result.status == "failed" and "videos" in result.error
-    assert not (tmp_path / "x.hdf5").exists() and not (tmp_path / "x.hdf5.partial").exists()
+    assert sorted(tmp_path.iterdir()) == [tmp_path / "raw"]  # neither the trajectory nor a temporary file
 
 
 @pytest.mark.parametrize("kwargs, message", [

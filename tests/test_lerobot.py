@@ -97,8 +97,8 @@ def test_export_refuses_what_would_lose_or_mix_data(two_episodes, tmp_path, caps
     out = tmp_path / "lerobot"
     out.mkdir()
     (out / "keep").write_text("mine")
-    cases = [([str(two_episodes), str(out)], "exists; pass --overwrite"),
-             ([str(two_episodes), str(two_episodes / "inside")], "would overlap the input"),
+    cases = [([str(two_episodes), str(out)], "not empty; pass --overwrite"),
+             ([str(two_episodes), str(two_episodes / "inside")], "would lie inside the input"),
              ([str(tmp_path / "none"), str(tmp_path / "x")], "not found"),
              ([str(tmp_path / "lerobot"), str(tmp_path / "y")], "no episodes found")]
     for args, message in cases:

@@ -19,6 +19,7 @@ from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.threaded_source import now_us
+from touchanything.devices.output_safety import temporary_path
 from touchanything.devices.rig.recorder import Recorder, RecorderConfig
 from touchanything.devices.rig.rig_clock import RigClock
 from touchanything.devices.snapshot import FPS, Snapshot
@@ -117,7 +118,7 @@ def test_sync_fsyncs_every_file_and_each_new_directory_entry_once(tmp_path, fsyn
     fsyncs.clear()
     writer.close()  # each file after its last bytes, the grids before their rename, the folder after it
     assert [f.path for f in fsyncs] == [folder / "chest.mp4", folder / "wilor_hands.json", folder / "jq_pressure.json",
-                                        folder / "pressure_grids.npz.partial.npz", folder]
+                                        temporary_path(folder / "pressure_grids.npz"), folder]
     assert fsyncs[0].size == (folder / "chest.mp4").stat().st_size
     fsyncs.clear()
     with RawEpisodeWriter(tmp_path / "plain") as plain:  # not durable, never synced: nothing
@@ -158,7 +159,7 @@ def test_the_recorder_fsyncs_every_stream_on_its_cadence_on_the_writer_thread(tm
     last = {f.path.name: f.size for f in fsyncs[len(during):]}
     assert all(last[name] == (folder / name).stat().st_size for name in
                ("chest.mp4", "wilor_hands.json", "jq_pressure.json", "vive_poses.json"))
-    assert "pressure_grids.npz.partial.npz" in last and folder.name in last
+    assert temporary_path(folder / "pressure_grids.npz").name in last and folder.name in last
 
 
 def test_the_recorder_syncs_what_waits_even_when_no_frame_comes(tmp_path, fsyncs):

@@ -7,11 +7,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from touchanything.devices.episodes.video_io import VideoWriter
+from touchanything.devices.episodes.video_io import VideoWriter, video_comment
+from touchanything.devices.output_safety import replacing
 from touchanything.viz.pressure_panel import BACKGROUND, pressure_panel, put_text
 
 WIDTH, CAMERA_HEIGHT, PANEL_HEIGHT, STRIP_HEIGHT, FOOTER_HEIGHT = 1440, 270, 360, 150, 26
 CAPTION_COLOURS = ((235, 235, 235), (40, 180, 255))  # BGR: the model line, then a warning in amber
+COMMENT = "touchanything comparison video"
+"""The comment tag of every comparison video: what a later run may replace without --overwrite."""
 VIEW_LABELS = {"ego": "Head", "wrist_left": "Left Wrist", "wrist_right": "Right Wrist"}
 
 
@@ -55,8 +58,15 @@ def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred:
 
 
 def write_comparison_video(path: Path, frames) -> int:
-    """Write an iterable of comparison frames as H.264 at 30 fps; returns the frame count."""
-    with VideoWriter(Path(path), crf=23) as writer:
+    """Write an iterable of comparison frames as H.264 at 30 fps, tagged as a comparison video (so a later run
+    may replace it without --overwrite), under the output rule (output_safety.replacing); returns the frame
+    count."""
+    with replacing(Path(path)) as temporary, VideoWriter(temporary, crf=23, metadata={"comment": COMMENT}) as writer:
         for frame in frames:
             writer.write(frame)
-        return writer.frames_written
+    return writer.frames_written
+
+
+def is_comparison_video(path: Path) -> bool:
+    """`path` is a comparison video this project wrote (its container's comment tag)."""
+    return Path(path).suffix.lower() == ".mp4" and video_comment(path) == COMMENT

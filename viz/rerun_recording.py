@@ -34,6 +34,7 @@ import numpy as np
 import rerun as rr
 
 from touchanything.devices.hand_pose import project_wilor
+from touchanything.devices.output_safety import temporary_path
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
 from touchanything.viz.hand3d_panel import vertex_colours
@@ -74,11 +75,6 @@ def map_image(grids: np.ndarray, lut: np.ndarray, low: float) -> np.ndarray:
     return rgba
 
 
-def partial_path(path: Path) -> Path:
-    """The temporary name an output is written under until it is complete."""
-    return path.with_name(f".{path.name}.partial-{os.getpid()}")
-
-
 class RerunRecording:
     """One Rerun recording. Methods may be called from any thread, one at a time; rows are sent in batches
     (`viz.rerun_columns`), each with its own frame and time.
@@ -92,7 +88,7 @@ class RerunRecording:
         self._stream = rr.RecordingStream(APPLICATION, send_properties=True, batcher_config=batching)
         sinks = []
         if target.rrd is not None:
-            sinks.append(rr.FileSink(partial_path(target.rrd)))
+            sinks.append(rr.FileSink(temporary_path(target.rrd)))
         if target.serve_port is not None:
             server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=target.grpc_port, server_memory_limit="512MiB")
             sinks.append(server)
@@ -261,5 +257,5 @@ class RerunRecording:
         stream, self._stream = self._stream, None
         stream.flush()
         stream.disconnect()
-        if self.target.rrd is not None and partial_path(self.target.rrd).exists():
-            os.replace(partial_path(self.target.rrd), self.target.rrd)
+        if self.target.rrd is not None and temporary_path(self.target.rrd).exists():
+            os.replace(temporary_path(self.target.rrd), self.target.rrd)

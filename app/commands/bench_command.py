@@ -15,10 +15,17 @@ import torch
 from touchanything.app.sessions.bundled import MODELS_DIR, OUTPUT_DIR, SAMPLE_DIR, bundled_models
 from touchanything.app.sessions.engine_choice import add_device_argument
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import check_report_folder, write_text
 from touchanything.inference.evaluation.bench import BenchPlan, bench_model
 from touchanything.inference.evaluation.bench_data import episode_paths, latency_clip, load_episode
 from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown
-from touchanything.inference.evaluation.bench_report import markdown, target_checks, write_outputs
+from touchanything.inference.evaluation.bench_report import (
+    GPU_OUTPUT_FILES,
+    OUTPUT_FILES,
+    markdown,
+    target_checks,
+    write_outputs,
+)
 from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.model_config import preset
 from touchanything.inference.model.models import TactileModel
@@ -72,16 +79,18 @@ def run_on_gpu(args: argparse.Namespace, device: torch.device) -> int:
                                    progress=lambda m: print(f"[{time.perf_counter() - started:6.0f} s] {m}", file=sys.stderr))
     record = {"machine": machine(), "device": device_label(device), "quick": args.quick, "rows": rows, "naive": naive,
               "seconds": time.perf_counter() - started}
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "engine_gpu.json").write_text(json.dumps(record, indent=1) + "\n")
-    (args.out / "engine_gpu.md").write_text(gpu_markdown(record))
+    json_path, markdown_path = (args.out / name for name in GPU_OUTPUT_FILES)
+    write_text(json_path, json.dumps(record, indent=1) + "\n")
+    write_text(markdown_path, gpu_markdown(record))
     print(gpu_markdown(record))
-    print(f"written: {args.out / 'engine_gpu.json'}, {args.out / 'engine_gpu.md'}")
+    print(f"written: {json_path}, {markdown_path}")
     return 0
 
 
 def run(args: argparse.Namespace) -> int:
     device = resolve_device(args.device)
+    check_report_folder(args.out, GPU_OUTPUT_FILES if device.type == "cuda" else OUTPUT_FILES,
+                        (args.data, *(args.models or ())))
     if device.type == "cuda":
         if args.pose_only_baseline:
             raise UserError("--pose-only-baseline needs accuracy, which the GPU bench (latency only) does not measure; "

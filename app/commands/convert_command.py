@@ -6,7 +6,6 @@ from pathlib import Path
 
 from touchanything.app.sessions.progress_bar import ProgressBar
 from touchanything.devices.episodes.dataset_conversion import CONVERSION_REPORT, QUALITY_REPORT, convert_dataset
-from touchanything.devices.episodes.episode_loader import find_raw_episodes
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -20,19 +19,23 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    total = len(find_raw_episodes(args.raw_root)) if args.raw_root.is_dir() else 0
-    with ProgressBar(total=total, unit="traj", desc="convert") as bar:
-        frames = [0]
+    bars: list[ProgressBar] = []  # the bar appears once the inputs and outputs were checked (an error is one line)
+    frames = [0]
 
-        def progress(result) -> None:
-            frames[0] += result.frames
-            bar.set_postfix(frames=frames[0], failed=result.status == "failed" or None, refresh=False)
-            bar.update(1)
-            if result.status == "failed":
-                bar.write(f"failed: {result.error}")
+    def progress(result) -> None:
+        frames[0] += result.frames
+        bars[0].set_postfix(frames=frames[0], failed=result.status == "failed" or None, refresh=False)
+        bars[0].update(1)
+        if result.status == "failed":
+            bars[0].write(f"failed: {result.error}")
 
+    try:
         results = convert_dataset(args.raw_root, args.out_root, args.workers, args.compression_level,
-                                  args.skip_existing, on_result=progress)
+                                  args.skip_existing, on_result=progress,
+                                  on_start=lambda total: bars.append(ProgressBar(total=total, unit="traj", desc="convert")))
+    finally:
+        for bar in bars:
+            bar.close()
     report = args.out_root / CONVERSION_REPORT
     print(  # the report's summary line: the same numbers, labelled wall time and per worker
         report.read_text().splitlines()[0])

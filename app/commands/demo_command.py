@@ -7,9 +7,10 @@ from pathlib import Path
 
 from touchanything.app.sessions.bundled import OUTPUT_DIR, SAMPLE_DIR, sample_episodes
 from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint
-from touchanything.app.sessions.replay_runs import replay_in_dashboard, replay_to_video
+from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import add_overwrite_argument
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.display import display_problem
 
@@ -27,6 +28,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                                                               "predicted) to the comparison video (default: off)")
     add_device_argument(parser)
     add_rerun_arguments(parser)
+    add_overwrite_argument(parser, "--out (a file other than an earlier comparison video) or --rerun")
     parser.set_defaults(run=run)
 
 
@@ -38,11 +40,13 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"{SAMPLE_DIR}: no bundled sample episode found; pass an episode path")
         path = samples[0]
     choice = ModelChoice(default_checkpoint(), device=args.device)
-    rerun = rerun_target(args)
+    inputs = (path, choice.checkpoint)
+    rerun = rerun_target(args, inputs)
     problem = None if args.headless else display_problem()
     if problem:
         print(f"no dashboard: {problem}. Writing the comparison video instead.")
     if args.headless or problem:
+        check_video_output(args.out, inputs, args.overwrite)
         replay_to_video(path, choice, VIEW_NAMES, args.out, args.hand3d, rerun)
         print(f"watch it with any video player: {args.out}")
     else:

@@ -17,6 +17,7 @@ from touchanything.app.sessions.rerun_trajectories import TrajectoryRecordings
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.episodes.episode_loader import episode_exists, open_episode
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import add_overwrite_argument, check_report_folder, write_text
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.view_sets import VIEW_HELP, VIEW_SETS, view_set_name
 from touchanything.inference.evaluation.evaluation import EvaluationResult, evaluate, vision_share_summary
@@ -35,6 +36,7 @@ from touchanything.inference.model.torch_device import (
 from touchanything.viz.comparison_video import comparison_frame, write_comparison_video
 from touchanything.viz.hand3d_panel import hand3d_panel
 
+RESULT_FILES = ("results.json", "results.md")
 TIMING_COLUMNS = DETECTION_METRICS[:3] + EVENT_METRICS[:4]
 """The extra metrics in the Markdown table (support and event counts are in results.json only)."""
 
@@ -71,6 +73,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--hand3d", action="store_true", help="with --video: add the pressure painted on 3D hands "
                                                               "(measured | predicted) to the videos (default: off)")
     add_rerun_arguments(parser, serve=False)
+    add_overwrite_argument(parser, "--rerun")
     parser.set_defaults(run=run)
 
 
@@ -230,8 +233,12 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--batch-size must be at least 1, got {args.batch_size}")
     if args.video and not args.out:
         raise UserError("--video needs --out (the folder the videos go to)")
+    inputs = (args.checkpoint, args.config, args.data, args.split_file, *(args.baselines or ()),
+              args.pose_only_baseline if isinstance(args.pose_only_baseline, Path) else None)
+    if args.out:
+        check_report_folder(args.out, RESULT_FILES, inputs)
     if args.rerun is not None:
-        check_rrd_output(args.rerun, args.overwrite)
+        check_rrd_output(args.rerun, args.overwrite, inputs)
     files = split_files(args.data, args.split, args.split_file, args.num_traj)
     group = join_process_group(args.device)
     if args.rerun is not None and group.world > 1:
@@ -244,11 +251,6 @@ def run(args: argparse.Namespace) -> int:
     if group.is_main:
         print(f"eval on {device_label(device)}, {args.precision}, {len(files)} trajectories"
               + (f" over {group.world} processes" if group.world > 1 else ""))
-    if args.out:
-        try:
-            args.out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise UserError(f"{args.out}: cannot create the output folder ({exc.strerror})") from None
     results = []
     recordings = args.rerun and TrajectoryRecordings(args.rerun, TactileLayout.default().bend, {"checkpoint": str(args.checkpoint)})
     try:
@@ -270,8 +272,8 @@ def run(args: argparse.Namespace) -> int:
         payload = {"split": args.split, "checkpoint": str(args.checkpoint), "ego_path": args.ego_path,
                    "pose_only_checkpoint": baseline and str(baseline),
                    "baselines": {n: str(c) for n, (c, _) in baselines.items()}, "results": [result_record(r, results) for r in results]}
-        (args.out / "results.json").write_text(json.dumps(payload, indent=1, allow_nan=True) + "\n")
-        (args.out / "results.md").write_text(table)
+        write_text(args.out / RESULT_FILES[0], json.dumps(payload, indent=1, allow_nan=True) + "\n")
+        write_text(args.out / RESULT_FILES[1], table)
         print(f"results: {args.out / 'results.json'}, {args.out / 'results.md'}")
     if args.rerun is not None:
         print(f"rerun: {args.rerun} ({len(recordings.parts)} recordings; open with: rerun {args.rerun})")

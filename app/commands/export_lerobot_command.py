@@ -4,43 +4,34 @@ the fps and every frame's capture time; docs/data_formats.md, "LeRobot datasets"
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 from tqdm import tqdm
 
 from touchanything.devices.episodes.lerobot_export import export_lerobot, source_episodes
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import add_overwrite_argument, check_output
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("export-lerobot", help="export episodes as a LeRobot v3.0 dataset")
     parser.add_argument("root", type=Path, help="dataset root (raw episode folders and/or .hdf5 files), or one episode")
     parser.add_argument("out", type=Path, help="the dataset folder to write (meta/, data/, videos/)")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing OUT (default: refuse)")
+    add_overwrite_argument(parser, "OUT")
     parser.set_defaults(run=run)
 
 
-def check_output(root: Path, out: Path, overwrite: bool) -> None:
-    """Before any work: OUT is neither ROOT nor inside it (nor ROOT inside OUT), does not exist unless
-    `overwrite`, and its folder is writable."""
-    source, target = root.resolve(), out.resolve()
-    if target == source or source in target.parents or target in source.parents:
-        raise UserError(f"{out}: the output would overlap the input {root}; choose a folder outside it")
-    if out.exists() and not overwrite:
-        raise UserError(f"{out}: exists; pass --overwrite to replace it")
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"{out.parent}: cannot create the output folder ({exc.strerror})") from None
-    if not os.access(out.parent, os.W_OK | os.X_OK):
-        raise UserError(f"{out.parent}: not writable")
+def check_export_output(root: Path, out: Path, overwrite: bool) -> None:
+    """Before any work: OUT is not inside ROOT (nor ROOT inside OUT) and passes the output rule."""
+    if root.resolve() in out.resolve().parents:
+        raise UserError(f"{out}: the output would lie inside the input {root}; choose a folder outside it")
+    check_output(out, (root,), overwrite, whole=True)
 
 
 def run(args: argparse.Namespace) -> int:
     if not args.root.exists():
         raise UserError(f"{args.root}: not found")
-    check_output(args.root, args.out, args.overwrite)
+    check_export_output(args.root, args.out, args.overwrite)
     sources = source_episodes(args.root)
     if not sources:
         raise UserError(f"{args.root}: no episodes found (raw folders with chest.mp4, or .hdf5 files)")

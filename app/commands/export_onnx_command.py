@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.devices.output_safety import check_output
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.inference.engine.engine_runtime import TorchRuntime
 from touchanything.inference.engine.onnx_export import WINDOW, export_onnx
@@ -34,6 +35,7 @@ def agreement(torch_runtime: TorchRuntime, onnx_runtime: OnnxRuntime, size: int,
 
 
 def run(args: argparse.Namespace) -> int:
+    check_output(args.out, (args.checkpoint, args.config), folder=True)
     model = load_model(args.checkpoint, args.config)
     manifest = export_onnx(model, args.out, int8=args.int8, source=str(args.checkpoint))
     reference = TorchRuntime(model)

@@ -5,7 +5,9 @@ import argparse
 from pathlib import Path
 
 from touchanything.devices.episodes.episode_writer import write_grids_from_glove
+from touchanything.devices.episodes.raw_episode import GLOVE_FILE, GRIDS_FILE
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import check_output, named
 from touchanything.devices.snapshot import HANDS
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import TactileConfig
@@ -36,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--min-scale must be positive, got {args.min_scale}")
     layout = TactileLayout.from_dir(args.layout) if args.layout else TactileLayout.default()
     config = TactileConfig(broken_columns=tuple(args.repair_column), min_scale=args.min_scale)
+    for folder in args.episodes:  # every output checked before any work
+        check_output(folder / GRIDS_FILE, (folder / GLOVE_FILE, args.layout), own=named(GRIDS_FILE))
     for folder in args.episodes:
         grids = write_grids_from_glove(folder, layout, config)
         print(f"{folder}: {len(grids.grids)} frames; baseline corrected left {grids.baseline_applied[0]}, "

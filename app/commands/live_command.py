@@ -20,6 +20,7 @@ from touchanything.app.sessions.rerun_output import (
     session_properties,
 )
 from touchanything.app.sessions.rerun_sink import RerunSink, seconds_since_first
+from touchanything.devices.output_safety import add_overwrite_argument
 from touchanything.viz.hand_projection import pose_label
 
 SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
@@ -32,6 +33,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--seconds", type=float, default=10.0, help="how long --headless runs (default 10)")
     add_device_argument(parser, default=None)
     add_rerun_arguments(parser)
+    add_overwrite_argument(parser, "--rerun")
     parser.set_defaults(run=run)
 
 
@@ -90,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
         from touchanything.devices.errors import UserError
 
         raise UserError(f"cannot open the dashboard: {problem}; use --headless")
-    target = rerun_target(args, LIVE_IMAGE_SCALE)
+    target = rerun_target(args, (args.scene,), LIVE_IMAGE_SCALE)
     session = open_live_session(args.scene, args.device)
     engine = session.live and session.live.engine
     recording = target and open_recording(target, f"live {args.scene.stem}", session_properties(session.choice, engine))

@@ -9,6 +9,7 @@ from tqdm import tqdm
 
 from touchanything.app.sessions.pose_file import write_pose_file
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig
+from touchanything.devices.output_safety import add_overwrite_argument
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -18,7 +19,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                                                                 "episode's chest.mp4)")
     parser.add_argument("--mirror", action="store_true", help="the video is mirrored (a selfie webcam): swap the "
                                                               "left and right labels")
-    parser.add_argument("--overwrite", action="store_true", help="replace --out when it exists (default: refuse)")
+    add_overwrite_argument(parser, "--out")
     parser.set_defaults(run=run)
 
 

@@ -8,8 +8,9 @@ from pathlib import Path
 
 from touchanything.app.sessions.bundled import OUTPUT_DIR
 from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint, view_set_argument
-from touchanything.app.sessions.replay_runs import replay_in_dashboard, replay_to_video
+from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
+from touchanything.devices.output_safety import add_overwrite_argument
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.view_sets import VIEW_HELP
 from touchanything.inference.engine.engine_config import RUNTIMES
@@ -42,6 +43,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--hand3d", action="store_true", help="add the pressure painted on 3D hands (measured | "
                                                               "predicted) to the comparison video (default: off)")
     add_rerun_arguments(parser)
+    add_overwrite_argument(parser, "--out (a file other than an earlier comparison video) or --rerun")
     parser.set_defaults(run=run)
 
 
@@ -61,14 +63,17 @@ def default_video(path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    rerun = rerun_target(args)
+    inputs = (args.episode, args.checkpoint, args.config)
+    rerun = rerun_target(args, inputs)
     headless = args.headless or args.out is not None
+    out = args.out or default_video(args.episode)
+    if headless:
+        check_video_output(out, inputs, args.overwrite)
     if not headless and rerun is not None and (problem := display_problem()):
         print(f"no dashboard: {problem}. Writing the Rerun recording only (--headless: the comparison video too).")
         replay_to_video(args.episode, model_choice(args), selected_views(args), None, rerun=rerun)
     elif headless:
-        replay_to_video(args.episode, model_choice(args), selected_views(args), args.out or default_video(args.episode),
-                        args.hand3d, rerun)
+        replay_to_video(args.episode, model_choice(args), selected_views(args), out, args.hand3d, rerun)
     else:
         stats = replay_in_dashboard(args.episode, model_choice(args), selected_views(args), rerun=rerun).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")

@@ -2,11 +2,10 @@
 from __future__ import annotations
 
 import argparse
-import shutil
 from pathlib import Path
 
 from touchanything.app.sessions.progress_bar import ProgressBar
-from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import add_overwrite_argument, check_output, replacing_folder
 from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfig, check_config, percent, simulate_dataset
 
 
@@ -18,32 +17,16 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the whole dataset: the same seed gives the same "
                                                                   "episodes and split (default 0)")
     parser.add_argument("--workers", type=int, default=1, help="episodes generated in parallel (default 1)")
-    parser.add_argument("--overwrite", action="store_true", help="replace a non-empty output folder (default: refuse)")
+    add_overwrite_argument(parser, "a non-empty OUT (only once the new dataset is complete)")
     parser.set_defaults(run=run)
-
-
-def prepare_output(out: Path, overwrite: bool) -> None:
-    """An empty, writable output folder (a non-empty one only with --overwrite)."""
-    if out.exists() and not out.is_dir():
-        raise UserError(f"{out}: exists and is not a folder")
-    if out.is_dir() and any(out.iterdir()):
-        if not overwrite:
-            raise UserError(f"{out}: folder is not empty (use --overwrite to replace it)")
-        shutil.rmtree(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".write_test"
-        probe.write_text("")
-        probe.unlink()
-    except OSError as exc:
-        raise UserError(f"{out}: cannot write the output folder ({exc.strerror})") from None
 
 
 def run(args: argparse.Namespace) -> int:
     config = SimulationConfig(args.episodes, args.seconds, args.seed, args.workers)
     check_config(config)
-    prepare_output(args.out, args.overwrite)
-    with ProgressBar(total=config.episodes, unit="episode", desc="simulate") as bar:
+    check_output(args.out, (), args.overwrite, whole=True)
+    with ProgressBar(total=config.episodes, unit="episode", desc="simulate") as bar, \
+            replacing_folder(args.out, args.overwrite) as folder:
         frames = [0]
 
         def progress(stats) -> None:
@@ -51,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
             bar.set_postfix(fps=f"{frames[0] / max(bar.format_dict['elapsed'], 1e-9):.1f}", refresh=False)
             bar.update(1)
 
-        card = simulate_dataset(args.out, config, on_episode=progress)
+        card = simulate_dataset(folder, config, on_episode=progress)
     print(f"{card['episodes']} episodes, {card['frames']} frames at {card['generation_fps']} frames/s")
     for camera, v in card["contact_visibility"].items():
         print(f"contact visible from {camera}: {percent(v['share'])} of {v['contact_points']} contact points")

@@ -4,8 +4,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, SplitConfig, build_split, read_split, write_split
+from touchanything.devices.episodes.dataset_split import (
+    SPLIT_FILE,
+    SPLIT_KEYS,
+    SplitConfig,
+    build_split,
+    is_split_file,
+    read_split,
+    write_split,
+)
 from touchanything.devices.errors import DataError, UserError
+from touchanything.devices.output_safety import add_overwrite_argument, check_output
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -20,13 +29,12 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--min-wilor-valid", type=float, default=SplitConfig.min_wilor_valid,
                         help="trajectories with a smaller share of pose-valid frames are left out (default 0.3)")
     parser.add_argument("--absolute", action="store_true", help="write absolute paths, as the official tool does")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace an existing split file (default: refuse; `convert` copies a split shipped "
-                             "with the raw data, e.g. the simulator's object-aware one)")
+    add_overwrite_argument(parser, "an existing split file (`convert` copies a split shipped with the raw data, e.g. the "
+                           "simulator's object-aware one) or another file at --out")
     parser.set_defaults(run=run)
 
 
-def check_output(out: Path, overwrite: bool) -> None:
+def check_existing_split(out: Path, overwrite: bool) -> None:
     """Refuse to replace an existing split file without `overwrite`, naming it and what it holds."""
     if not out.exists() or overwrite:
         return
@@ -40,7 +48,8 @@ def check_output(out: Path, overwrite: bool) -> None:
 
 def run(args: argparse.Namespace) -> int:
     out = args.out or args.hdf5_root / SPLIT_FILE
-    check_output(out, args.overwrite)
+    check_output(out, (args.hdf5_root,), args.overwrite, own=is_split_file)
+    check_existing_split(out, args.overwrite)
     config = SplitConfig(args.seed, args.unseen_ratio, args.min_frames, args.min_wilor_valid)
     split, excluded = build_split(args.hdf5_root, config)
     write_split(out, split, absolute=args.absolute)

@@ -7,6 +7,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from touchanything.devices.output_safety import check_output
 from touchanything.inference.training.train_config import describe_settings, train_config_from_file, with_epochs
 from touchanything.inference.training.trainer import BEST, LAST, Trainer
 
@@ -36,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, model=replace(config.model, blank_images=True))
     run_name = f"{time.strftime('%Y%m%d_%H%M%S')}_{config.model.backbone}_tactile_prediction_{args.config.stem}"
     out = args.out or Path("checkpoints") / run_name
+    check_output(out, (args.config, args.data, args.split_file, args.resume), folder=True)
     if os.environ.get("RANK", "0") == "0":
         print("\n".join([f"config {args.config}", *describe_settings(config)]), flush=True)
     trainer = Trainer(config, args.data, out, args.split_file)

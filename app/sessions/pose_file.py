@@ -1,12 +1,11 @@
 """Hand poses of a plain video into a WiLoR-format file (`wilor_hands.json`, JSON lines: one
 `{"frame_index", "left_pos": 21×3 | [], "right_pos": 21×3 | []}` per frame), estimated from its frames the
 way a replay estimates them (every frame in order, the frames' own timestamps), so `convert`, `eval`, the
-episode reader and the official tools can use them. Written to a temporary file and renamed at the end: an
-interrupted run leaves no half file under the name."""
+episode reader and the official tools can use them. Written under the output rule (output_safety): never over
+the video, to a temporary file renamed at the end (an interrupted run leaves no half file)."""
 from __future__ import annotations
 
 import contextlib
-import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -16,6 +15,7 @@ from touchanything.devices.episodes.episode_loader import open_video_episode
 from touchanything.devices.episodes.episode_streams import hands_row
 from touchanything.devices.episodes.jsonl import json_line
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import check_output, replacing
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 
 
@@ -27,30 +27,16 @@ def write_pose_file(video: Path, out: Path, config: CameraPoseConfig = CameraPos
     video, out = Path(video), Path(out)
     if video.is_dir():
         raise UserError(f"{video}: a folder; pass a video file (an episode's chest.mp4, for example)")
-    if out.exists() and not overwrite:
-        raise UserError(f"{out}: already exists; pass --overwrite to replace it")
+    check_output(out, (video,), overwrite)
     with open_video_episode(video) as episode:
         source = ReplaySource(episode, ReplayConfig(speed=None, views=("ego",), pose_source="camera", camera_pose=config))
-        partial = out.with_name(out.name + ".partial")
-        try:
-            handle = open(partial, "w")
-        except OSError as exc:
-            source.close()
-            raise UserError(f"{out}: cannot write ({exc.strerror})") from None
         summary = ReplaySummary()
-        progress(0, episode.num_frames)
-        try:
-            with handle, contextlib.closing(source):
-                for snapshot in source:
-                    summary.add_pose(snapshot)
-                    summary.frames += 1
-                    handle.write(json_line(hands_row(snapshot.frame_index, snapshot.joints.reshape(2, 21, 3),
-                                                     snapshot.joints_valid)))
-                    progress(summary.frames, episode.num_frames)
-        except BaseException as exc:  # interrupted or failed: no half file is left behind
-            partial.unlink(missing_ok=True)
-            if isinstance(exc, OSError):
-                raise UserError(f"{out}: cannot write ({exc.strerror or exc})") from None
-            raise
-    os.replace(partial, out)
+        with contextlib.closing(source), replacing(out) as partial, open(partial, "w") as handle:
+            progress(0, episode.num_frames)
+            for snapshot in source:
+                summary.add_pose(snapshot)
+                summary.frames += 1
+                handle.write(json_line(hands_row(snapshot.frame_index, snapshot.joints.reshape(2, 21, 3),
+                                                 snapshot.joints_valid)))
+                progress(summary.frames, episode.num_frames)
     return summary

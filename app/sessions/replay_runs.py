@@ -3,6 +3,7 @@ real time) or into a comparison video (every frame, headless). The poses come fr
 or, for a plain video, are estimated from its frames (`pose_source_for`)."""
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 from tqdm import tqdm
@@ -16,8 +17,10 @@ from touchanything.app.sessions.rerun_sink import RerunSink
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import is_plain_video, open_episode
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import check_output
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.viz.comparison_video import is_comparison_video
 from touchanything.viz.dashboard.dashboard import Dashboard
 from touchanything.viz.display import display_problem
 from touchanything.viz.rerun_recording import RerunTarget
@@ -26,15 +29,9 @@ from touchanything.viz.rerun_recording import RerunTarget
 def replay_to_video(path: Path, choice: ModelChoice, views: tuple[str, ...], out: Path | None, hand3d: bool = False,
                     rerun: RerunTarget | None = None) -> ReplaySummary:
     """Export one episode into the comparison video `out` (None: none; `hand3d`: with the 3D hands panel) and
-    the Rerun recording `rerun`; prints the episode, the summary and where the outputs are."""
-    if out is not None and out.suffix.lower() != ".mp4":
-        raise UserError(f"{out}: the video must be an .mp4 file")
+    the Rerun recording `rerun`; prints the episode, the summary and where the outputs are. The outputs were
+    checked by the caller (`check_video_output`, `rerun_target`)."""
     engine = build_engine(choice, views)
-    try:
-        if out is not None:
-            out.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"{out.parent}: cannot create the output folder ({exc.strerror})") from None
     with open_episode(path) as episode:
         _require_ego(path, episode)
         pose_source = pose_source_for(episode)
@@ -58,6 +55,14 @@ def replay_to_video(path: Path, choice: ModelChoice, views: tuple[str, ...], out
     if recording is not None:
         finish(recording)
     return summary
+
+
+def check_video_output(out: Path, inputs: Iterable[Path | None], overwrite: bool) -> None:
+    """Before any work: the comparison video `out` is an .mp4 and passes the output rule against the command's
+    `inputs` (an earlier comparison video is replaced without `overwrite`)."""
+    if out.suffix.lower() != ".mp4":
+        raise UserError(f"{out}: the video must be an .mp4 file")
+    check_output(out, inputs, overwrite, own=is_comparison_video)
 
 
 def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...], max_frames: int | None = None,

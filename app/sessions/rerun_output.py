@@ -8,15 +8,16 @@ import os
 import subprocess
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from touchanything.app.sessions.engine_choice import ModelChoice, model_label
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import is_plain_video
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import check_output, replacing
 from touchanything.inference.engine.streaming_engine import StreamingEngine
-from touchanything.viz.rerun_recording import RerunRecording, RerunTarget, partial_path
+from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
 
 DEFAULT_WEB_PORT = 9090
 LIVE_IMAGE_SCALE = 0.5
@@ -25,7 +26,7 @@ the encoding time, which the live path's CPU needs more (docs/rerun.md, "Costs")
 
 
 def add_rerun_arguments(parser: argparse.ArgumentParser, serve: bool = True) -> None:
-    """--rerun, --overwrite and (`serve`) --rerun-serve."""
+    """--rerun and (`serve`) --rerun-serve (the command adds the one `--overwrite`, see output_safety)."""
     parser.add_argument("--rerun", type=Path, metavar="FILE.rrd",
                         help="also write a Rerun recording of the session (cameras, 3D hands with the pressure painted on "
                              "them, measured and predicted maps, contact, official metrics, latency, trackers); open it "
@@ -34,32 +35,23 @@ def add_rerun_arguments(parser: argparse.ArgumentParser, serve: bool = True) -> 
         parser.add_argument("--rerun-serve", type=int, nargs="?", const=DEFAULT_WEB_PORT, metavar="PORT",
                             help=f"also serve the recording to a web viewer at http://localhost:PORT (default port "
                                  f"{DEFAULT_WEB_PORT}; default: not served)")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --rerun file (default: refuse)")
 
 
-def check_rrd_output(path: Path, overwrite: bool) -> None:
-    """Before any work: `path` ends in .rrd, is not a folder, does not exist unless `overwrite`, and its folder
-    exists (it is created) and is writable. UserError (one line) otherwise."""
+def check_rrd_output(path: Path, overwrite: bool, inputs: Iterable[Path | None] = ()) -> None:
+    """Before any work: `path` ends in .rrd and passes the output rule (output_safety.check_output) against
+    the command's `inputs`. UserError (one line) otherwise."""
     if path.suffix.lower() != ".rrd":
         raise UserError(f"{path}: a Rerun recording must be an .rrd file")
-    if path.is_dir():
-        raise UserError(f"{path}: is a folder; give the .rrd file to write")
-    if path.exists() and not overwrite:
-        raise UserError(f"{path}: exists; pass --overwrite to replace it")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"{path.parent}: cannot create the output folder ({exc.strerror})") from None
-    if not os.access(path.parent, os.W_OK | os.X_OK):
-        raise UserError(f"{path.parent}: not writable")
+    check_output(path, inputs, overwrite)
 
 
-def rerun_target(args: argparse.Namespace, image_scale: float = 1.0) -> RerunTarget | None:
-    """The target of the command's --rerun / --rerun-serve options (None: neither), checked."""
+def rerun_target(args: argparse.Namespace, inputs: Iterable[Path | None] = (), image_scale: float = 1.0) -> RerunTarget | None:
+    """The target of the command's --rerun / --rerun-serve options (None: neither), checked against the
+    command's `inputs`."""
     if args.rerun is None and args.rerun_serve is None:
         return None
     if args.rerun is not None:
-        check_rrd_output(args.rerun, args.overwrite)
+        check_rrd_output(args.rerun, args.overwrite, inputs)
     if args.rerun_serve is not None and not 0 < args.rerun_serve < 65536:
         raise UserError(f"--rerun-serve: {args.rerun_serve} is not a port number (1–65535)")
     return RerunTarget(args.rerun, args.rerun_serve, image_scale=image_scale)
@@ -105,14 +97,12 @@ def session_properties(choice: ModelChoice, engine: StreamingEngine | None, epis
 
 
 def merge_recordings(parts: list[Path], out: Path) -> None:
-    """Merge .rrd files (each its own recording) into `out` with Rerun's own `rrd merge`; written under a
-    temporary name and renamed; the parts are removed."""
-    partial = partial_path(out)
-    command = [sys.executable, "-m", "rerun_cli", "rrd", "merge", *map(str, parts), "-o", str(partial)]
-    result = subprocess.run(command, capture_output=True, text=True, env={**os.environ, "RUST_LOG": "warn"})
-    if result.returncode != 0:
-        partial.unlink(missing_ok=True)
-        raise UserError(f"{out}: merging the recordings failed ({result.stderr.strip().splitlines()[-1:]})")
-    os.replace(partial, out)
+    """Merge .rrd files (each its own recording) into `out` with Rerun's own `rrd merge` (written under a
+    temporary name and renamed, output_safety.replacing); the parts are removed."""
+    with replacing(out) as temporary:
+        command = [sys.executable, "-m", "rerun_cli", "rrd", "merge", *map(str, parts), "-o", str(temporary)]
+        result = subprocess.run(command, capture_output=True, text=True, env={**os.environ, "RUST_LOG": "warn"})
+        if result.returncode != 0:
+            raise UserError(f"{out}: merging the recordings failed ({result.stderr.strip().splitlines()[-1:]})")
     for part in parts:
         part.unlink(missing_ok=True)

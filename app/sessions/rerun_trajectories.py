@@ -10,10 +10,11 @@ import numpy as np
 
 from touchanything.app.sessions.rerun_output import merge_recordings
 from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.output_safety import temporary_path
 from touchanything.devices.snapshot import TRACKER_ROLES
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.contact import hand_contact
-from touchanything.viz.rerun_recording import RerunRecording, RerunTarget, partial_path
+from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
 
 
 class TrajectoryRecordings:
@@ -23,7 +24,7 @@ class TrajectoryRecordings:
         self.out = out
         self.bend = bend
         self.properties = properties
-        self.parts_dir = partial_path(out).with_suffix(".parts")
+        self.parts_dir = temporary_path(out.with_suffix(".parts"))
         self.parts: list[Path] = []
 
     def add(self, name: str, episode: Episode, predicted: np.ndarray, truth: np.ndarray) -> None:

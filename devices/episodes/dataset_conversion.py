@@ -11,6 +11,7 @@ from touchanything.devices.episodes.dataset_split import SPLIT_FILE
 from touchanything.devices.episodes.episode_loader import find_raw_episodes
 from touchanything.devices.episodes.hdf5_convert import ConversionResult, convert_trajectory, output_path
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import check_report_folder, replacing, write_text
 
 CONVERSION_REPORT = "conversion_report.txt"
 QUALITY_REPORT = "quality_report.txt"
@@ -18,8 +19,10 @@ QUALITY_REPORT = "quality_report.txt"
 
 def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compression_level: int = 4,
                     skip_existing: bool = False,
-                    on_result: Callable[[ConversionResult], None] | None = None) -> list[ConversionResult]:
-    """Convert every trajectory under `raw_root`; one bad trajectory never stops the others."""
+                    on_result: Callable[[ConversionResult], None] | None = None,
+                    on_start: Callable[[int], None] | None = None) -> list[ConversionResult]:
+    """Convert every trajectory under `raw_root`; one bad trajectory never stops the others. `on_start(n)`:
+    once the inputs and outputs were checked, with the number of trajectories found."""
     raw_root, out_root = Path(raw_root), Path(out_root)
     if not raw_root.is_dir():
         raise UserError(f"{raw_root}: raw root folder not found")
@@ -30,10 +33,8 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
     folders = find_raw_episodes(raw_root)
     if not folders:
         raise UserError(f"{raw_root}: no trajectories found (folders holding chest.mp4, up to 4 levels deep)")
-    try:
-        out_root.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"{out_root}: cannot create the output folder ({exc.strerror})") from None
+    check_report_folder(out_root, (CONVERSION_REPORT, QUALITY_REPORT), (raw_root,))
+    on_start and on_start(len(folders))
     started = time.perf_counter()
     results, todo = [], []
     for folder in folders:
@@ -58,7 +59,8 @@ def copy_split(raw_root: Path, out_root: Path) -> None:
     an existing one there is kept."""
     source, target = raw_root / SPLIT_FILE, out_root / SPLIT_FILE
     if source.is_file() and not target.exists():
-        shutil.copyfile(source, target)
+        with replacing(target) as temporary:
+            shutil.copyfile(source, temporary)
 
 
 def _run(todo: list[tuple[Path, Path]], workers: int, level: int):
@@ -91,7 +93,7 @@ def write_reports(out_root: Path, results: list[ConversionResult], wall_seconds:
     for r in results:
         detail = r.error if r.status == "failed" else f"{r.frames} frames, {r.seconds:.1f} s of work"
         lines.append(f"{r.status:9s} {r.source} -> {r.output}: {detail}")
-    (out_root / CONVERSION_REPORT).write_text("\n".join(lines) + "\n")
+    write_text(out_root / CONVERSION_REPORT, "\n".join(lines) + "\n")
     quality = []
     for r in results:
         if r.status != "converted":
@@ -100,7 +102,7 @@ def write_reports(out_root: Path, results: list[ConversionResult], wall_seconds:
         quality.append(f"{r.output}: wilor valid {q.get('wilor_valid_ratio', 0):.1%}, duplicate wrist frames "
                        f"left {_measured(q.get('left', -1))} right {_measured(q.get('right', -1))}")
         quality += [f"  problem: {p}" for p in r.problems]
-    (out_root / QUALITY_REPORT).write_text("\n".join(quality) + "\n")
+    write_text(out_root / QUALITY_REPORT, "\n".join(quality) + "\n")
 
 
 def _measured(ratio: float) -> str:

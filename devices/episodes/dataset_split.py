@@ -14,6 +14,7 @@ from touchanything.devices.episodes.episode_files import read_json_file
 from touchanything.devices.episodes.episode_loader import find_hdf5_files
 from touchanything.devices.episodes.hdf5_episode import WILOR_VALID_KEYS
 from touchanything.devices.errors import DataError, UserError
+from touchanything.devices.output_safety import write_text
 
 SPLIT_KEYS = ("train", "val", "test_seen", "test_unseen")
 SPLIT_FILE = "split.json"
@@ -36,6 +37,18 @@ def read_split(path: Path) -> dict[str, list[Path]]:
                 raise DataError(path, key, f"entry {number} is not a usable file path ({problem})")
         split[key] = [(path.parent / e) if not Path(e).is_absolute() else Path(e) for e in entries]
     return split
+
+
+def is_split_file(path: Path) -> bool:
+    """`path` is named split.json or reads as a split file: an earlier output of `split`, which a new one
+    replaces without --overwrite."""
+    if Path(path).name == SPLIT_FILE:
+        return True
+    try:
+        read_split(path)
+    except (DataError, OSError):
+        return False
+    return True
 
 
 def _path_problem(entry: str) -> str | None:
@@ -62,12 +75,7 @@ def write_split(path: Path, split: dict[str, list[Path]], absolute: bool = False
         resolved = Path(p).resolve()
         return str(resolved) if absolute else os.path.relpath(resolved, base)
 
-    text = json.dumps({key: [name(p) for p in split.get(key, [])] for key in SPLIT_KEYS}, indent=1) + "\n"
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
-    except OSError as exc:
-        raise UserError(f"{path}: cannot write the split file ({exc.strerror})") from None
+    write_text(path, json.dumps({key: [name(p) for p in split.get(key, [])] for key in SPLIT_KEYS}, indent=1) + "\n")
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,6 @@ picture for a frame without it (as a rig that keeps the latest frame of every ca
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -28,6 +27,7 @@ from touchanything.devices.episodes.jsonl import json_line
 from touchanything.devices.episodes.raw_episode import GLOVE_FILE, GRIDS_FILE, ROKOKO_FILE, VIDEO_FILES, VIVE_FILE, WILOR_FILE
 from touchanything.devices.episodes.video_io import VideoWriter, fsync_fd, fsync_path
 from touchanything.devices.errors import DataError
+from touchanything.devices.output_safety import replacing
 from touchanything.devices.snapshot import FRAME_PERIOD_US
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import PressureGrids, TactileConfig, process_raw
@@ -55,19 +55,19 @@ def write_grids_from_glove(folder: Path, layout: TactileLayout | None = None, co
 
 def _write_grids(folder: Path, raw: np.ndarray, layout: TactileLayout, config: TactileConfig,
                  sync: bool = False) -> PressureGrids:
-    """Write the grids to a partial file renamed into place; `sync`: fsync the file before the rename and the
+    """Write the grids to a temporary file renamed into place (output_safety.replacing: a failed write, disk
+    full included, leaves the old file and no temporary one); `sync`: fsync the file before the rename and the
     folder after it (the grids are then on the disk, or absent, never a torn file). A failed fsync is raised
     after the rename: the grids are still there to read."""
     grids = process_raw(raw, layout, config)
-    part = folder / (GRIDS_FILE + ".partial.npz")
-    write_pressure_grids(part, grids.grids, grids.baseline_applied, grids.tactile_max, grids.bend_max)
     failure: OSError | None = None
-    if sync:
-        try:
-            fsync_path(part)
-        except OSError as exc:
-            failure = exc
-    os.replace(part, folder / GRIDS_FILE)
+    with replacing(folder / GRIDS_FILE) as part:
+        write_pressure_grids(part, grids.grids, grids.baseline_applied, grids.tactile_max, grids.bend_max)
+        if sync:
+            try:
+                fsync_path(part)
+            except OSError as exc:
+                failure = exc
     if failure is not None:
         raise failure
     if sync:

@@ -1,11 +1,10 @@
 """Convert raw EgoTouch episode folders to HDF5 trajectories in the official schema.
 
-Output: `<out>/<Scene>/<Task>/<trajectory_id>.hdf5`, written to a `.partial` file and renamed when
-complete, so a failed or interrupted conversion never leaves a half-written trajectory behind.
+Output: `<out>/<Scene>/<Task>/<trajectory_id>.hdf5`, written to a temporary file and renamed when complete
+(output_safety.replacing), so a failed or interrupted conversion never leaves a half-written trajectory behind.
 """
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +24,8 @@ from touchanything.devices.episodes.hdf5_episode import (
     WILOR_VALID_KEYS,
 )
 from touchanything.devices.episodes.raw_episode import MASKS_FILE, QUALITY_FILE, REQUIRED_FILES, WILOR_FILE, open_raw_episode
-from touchanything.devices.errors import DataError
+from touchanything.devices.errors import DataError, UserError
+from touchanything.devices.output_safety import replacing
 
 DUPLICATE_ISSUE_RATIO = 0.20
 
@@ -151,7 +151,6 @@ def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4)
     if missing:
         result.error = f"{folder}: missing required file(s): {', '.join(missing)}"
         return result
-    partial = Path(out_path).with_name(Path(out_path).name + ".partial")
     try:
         with open_raw_episode(folder) as episode:
             result.problems = list(episode.problems)
@@ -160,20 +159,17 @@ def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4)
             if unreadable or episode.num_frames == 0:
                 raise DataError(folder, None, f"cannot convert: unreadable {', '.join(unreadable) or 'frames (0 frames)'}")
             result.quality = _quality(episode, result.problems)
-            partial.parent.mkdir(parents=True, exist_ok=True)
-            with h5py.File(partial, "w") as file:
+            with replacing(Path(out_path)) as partial, h5py.File(partial, "w") as file:
                 frames = _write_images(file, episode, compression_level)
                 if frames < episode.num_frames:
                     result.problems.append(f"{folder}: videos decode only {frames} of {episode.num_frames} frames; cut to {frames}")
                 _write_streams(file, episode, frames, compression_level)
                 _write_masks(file, episode, frames, compression_level, result.problems)
                 _write_attrs(file, episode, frames, result.quality)
-        os.replace(partial, out_path)
         result.status, result.frames = "converted", frames
         result.quality["wilor_valid_ratio"] = _pose_ratio(episode, frames)
-    except (DataError, OSError) as exc:
+    except (DataError, UserError, OSError) as exc:
         result.error = str(exc)
-        partial.unlink(missing_ok=True)
     result.seconds = time.perf_counter() - started
     return result
 

@@ -6,8 +6,6 @@ the exported episodes (`ROOT/episode_NNNNNN`), so `eval --data OUT` evaluates th
 from __future__ import annotations
 
 import json
-import os
-import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +16,7 @@ from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_raw_episodes, is_hdf5_path, open_episode
 from touchanything.devices.episodes.lerobot_writer import LeRobotWriter
 from touchanything.devices.errors import DataError, UserError
+from touchanything.devices.output_safety import replacing_folder
 
 
 @dataclass
@@ -103,10 +102,8 @@ def export_lerobot(root: Path, out: Path, overwrite: bool = False,
     paths, summary.views, sizes, fps = _plan(sources, summary)
     if not paths:
         raise UserError(f"{root}: none of the {len(sources)} episodes can be exported ({summary.skipped[0]})")
-    partial = out.with_name(f".{out.name}.partial-{os.getpid()}")
-    shutil.rmtree(partial, ignore_errors=True)
-    writer = LeRobotWriter(partial, fps, summary.views, sizes)
-    try:
+    with replacing_folder(out, overwrite) as partial:
+        writer = LeRobotWriter(partial, fps, summary.views, sizes)
         for path in paths:
             with open_episode(path) as episode:
                 writer.add(episode, task_text(episode.task), _extra(episode))
@@ -114,21 +111,4 @@ def export_lerobot(root: Path, out: Path, overwrite: bool = False,
             on_episode(path)
         writer.close()
         _write_split(root, partial, paths)
-        _replace(partial, out, overwrite)
-    except BaseException:
-        shutil.rmtree(partial, ignore_errors=True)
-        raise
     return summary
-
-
-def _replace(partial: Path, out: Path, overwrite: bool) -> None:
-    """Rename the finished export into place (an existing output, with `overwrite`, only once it is done)."""
-    if out.exists():
-        if not overwrite:
-            raise UserError(f"{out}: appeared while exporting; pass --overwrite to replace it")
-        old = out.with_name(f".{out.name}.old-{os.getpid()}")
-        os.replace(out, old)
-        os.replace(partial, out)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        os.replace(partial, out)

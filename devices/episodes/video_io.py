@@ -143,10 +143,12 @@ class VideoWriter:
     """
 
     def __init__(self, path: Path, fps: int = 30, crf: int = 20, preset: str = "veryfast", fragmented: bool = True,
-                 codec_options: dict[str, str] | None = None) -> None:
+                 codec_options: dict[str, str] | None = None, metadata: dict[str, str] | None = None) -> None:
         """`fragmented` False: a plain MP4 (index at the end; readable only once closed). `codec_options`: more
-        libx264 options (e.g. {"g": "2", "bf": "0"}), over the defaults (key frame every second)."""
+        libx264 options (e.g. {"g": "2", "bf": "0"}), over the defaults (key frame every second). `metadata`:
+        the container's tags (e.g. {"comment": …}; `video_comment` reads it back)."""
         self.path = Path(path)
+        self.metadata = metadata or {}
         self.fps, self.crf, self.preset = fps, crf, preset
         self.fragmented, self.codec_options = fragmented, codec_options or {}
         self._container: av.container.OutputContainer | None = None
@@ -159,6 +161,7 @@ class VideoWriter:
             raise ValueError(f"H.264 needs even frame sizes, got {width}×{height}")
         options = {"movflags": "frag_keyframe+empty_moov+default_base_moof", "flush_packets": "1"} if self.fragmented else {}
         self._container = av.open(str(self.path), "w", format="mp4", options=options)
+        self._container.metadata.update(self.metadata)
         self._stream = self._container.add_stream("libx264", rate=self.fps)
         self._stream.width, self._stream.height, self._stream.pix_fmt = width, height, "yuv420p"
         self._stream.options = {"crf": str(self.crf), "preset": self.preset, "g": str(self.fps), **self.codec_options}
@@ -231,3 +234,12 @@ def fsync_path(path: Path, directory: bool = False) -> None:
         fsync_fd(fd, path)
     finally:
         os.close(fd)
+
+
+def video_comment(path: Path) -> str | None:
+    """The `comment` tag of a video file's container (None: no tag, or not a video PyAV opens)."""
+    try:
+        with av.open(str(path)) as container:
+            return container.metadata.get("comment")
+    except (av.FFmpegError, OSError, ValueError):
+        return None

@@ -22,6 +22,7 @@ from pathlib import Path
 import torch
 
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import replacing, write_text
 from touchanything.inference.engine.frame_encoder import bake_position_embedding
 from touchanything.inference.engine.model_halves import model_halves
 from touchanything.inference.engine.window_head import JOINTS_PER_HAND
@@ -87,23 +88,21 @@ def quantize_int8(source: Path, target: Path) -> None:
 def export_onnx(model: TactileModel, out_dir: Path, *, int8: bool = False, source: str = "") -> dict:
     """Write the graphs and `engine.json` into `out_dir`; return the manifest."""
     out_dir = Path(out_dir)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"{out_dir}: cannot create the output folder ({exc.strerror})") from None
     model = copy.deepcopy(model).float().cpu().eval()
     bake_position_embedding(model)
     files = {"fp32": {"encoder": "encoder.onnx", "head": "head.onnx"}}
-    export_encoder(model, out_dir / "encoder.onnx")
-    export_head(model, out_dir / "head.onnx")
+    for name, export in (("encoder.onnx", export_encoder), ("head.onnx", export_head)):
+        with replacing(out_dir / name) as temporary:
+            export(model, temporary)
     if int8:
         files["int8"] = {part: f"{part}.int8.onnx" for part in ("encoder", "head")}
         for part in ("encoder", "head"):
-            quantize_int8(out_dir / files["fp32"][part], out_dir / files["int8"][part])
+            with replacing(out_dir / files["int8"][part]) as temporary:
+                quantize_int8(out_dir / files["fp32"][part], temporary)
     manifest = {"config": config_to_dict(model.config), "image_size": model.config.image_size,
                 "tokens": model.frame_token_shape[0], "width": model.frame_token_shape[1],
                 "window": WINDOW, "opset": OPSET, "source": source, "files": files}
-    (out_dir / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+    write_text(out_dir / MANIFEST, json.dumps(manifest, indent=2) + "\n")
     return manifest
 
 

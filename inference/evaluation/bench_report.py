@@ -5,7 +5,12 @@ import json
 import math
 from pathlib import Path
 
+from touchanything.devices.output_safety import replacing, write_text
+
 P99_TARGET_MS = 33.0
+OUTPUT_FILES = ("engine.json", "engine.md", "engine_pareto.png")
+"""What `bench` writes into its --out folder (on a GPU: GPU_OUTPUT_FILES instead)."""
+GPU_OUTPUT_FILES = ("engine_gpu.json", "engine_gpu.md")
 NAIVE_RATIO_TARGET = 5.0
 PRECISION_LOSS_TARGET = 0.01
 
@@ -151,14 +156,15 @@ def pareto_plot(rows: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig = pareto_figure(rows)
-    fig.savefig(path)
+    fig.savefig(path, format="png")
     plt.close(fig)
 
 
 def write_outputs(record: dict, out_dir: Path) -> list[Path]:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = [out_dir / "engine.json", out_dir / "engine.md", out_dir / "engine_pareto.png"]
-    paths[0].write_text(json.dumps(record, indent=1) + "\n")
-    paths[1].write_text(markdown(record))
-    pareto_plot(record["rows"], paths[2])
+    """OUTPUT_FILES into `out_dir`, each under the output rule (output_safety.replacing)."""
+    paths = [out_dir / name for name in OUTPUT_FILES]
+    write_text(paths[0], json.dumps(record, indent=1) + "\n")
+    write_text(paths[1], markdown(record))
+    with replacing(paths[2]) as temporary:
+        pareto_plot(record["rows"], temporary)
     return paths

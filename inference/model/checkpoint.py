@@ -2,7 +2,6 @@
 beside them) and the public loader `load_model`."""
 from __future__ import annotations
 
-import os
 import warnings
 from pathlib import Path
 
@@ -10,6 +9,7 @@ import torch
 import yaml
 
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import replacing, write_text
 from touchanything.inference.model.config_files import read_config_file
 from touchanything.inference.model.model_config import ModelConfig, config_from_dict, write_config
 from touchanything.inference.model.models import TactileModel, create_model
@@ -107,22 +107,20 @@ def save_checkpoint(path: Path, model: TactileModel, *, epoch: int = 0, optimize
                     loss: float | None = None, metrics: dict | None = None, half: bool = False,
                     config: dict | None = None) -> None:
     """Official dict format plus `config.yaml` beside (`config`, or the model's own section); `half`
-    stores floating tensors as fp16. Written to a temporary name and renamed, so a crash never leaves a
-    truncated checkpoint."""
+    stores floating tensors as fp16. Written to a temporary name and renamed (output_safety.replacing), so a
+    crash or a full disk never leaves a truncated checkpoint."""
     state = model.state_dict()
     if half:
         state = {k: v.half() if v.is_floating_point() else v for k, v in state.items()}
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(path.name + ".partial")
-    torch.save({
-        "epoch": epoch, "model_state_dict": state,
-        "optimizer_state_dict": optimizer.state_dict() if optimizer is not None else {},
-        "scheduler_state_dict": scheduler.state_dict() if scheduler is not None else {},
-        "loss": loss, "metrics": metrics or {},
-    }, partial)
-    os.replace(partial, path)
+    with replacing(path) as partial:
+        torch.save({
+            "epoch": epoch, "model_state_dict": state,
+            "optimizer_state_dict": optimizer.state_dict() if optimizer is not None else {},
+            "scheduler_state_dict": scheduler.state_dict() if scheduler is not None else {},
+            "loss": loss, "metrics": metrics or {},
+        }, partial)
     if config is None:
         write_config(path.parent / CONFIG_FILE, model.config)
     else:
-        (path.parent / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
+        write_text(path.parent / CONFIG_FILE, yaml.safe_dump(config, sort_keys=False))

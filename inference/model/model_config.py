@@ -16,6 +16,7 @@ from typing import ClassVar
 import yaml
 
 from touchanything.devices.errors import UserError, describe
+from touchanything.devices.output_safety import write_text
 from touchanything.inference.model.config_sections import SectionReader, check_section, limits, section_to_dict
 from touchanything.inference.model.conv_backbone import CONV_BACKBONES
 from touchanything.inference.model.vit import BACKBONES, PATCH
@@ -263,4 +264,4 @@ def config_to_dict(config: ModelConfig) -> dict:
 
 
 def write_config(path: Path, config: ModelConfig) -> None:
-    Path(path).write_text(yaml.safe_dump(config_to_dict(config), sort_keys=False))
+    write_text(Path(path), yaml.safe_dump(config_to_dict(config), sort_keys=False))
