@@ -129,7 +129,9 @@ def test_split_refuses_a_trajectory_as_its_output(sim_hdf5_root, tmp_path, capsy
         assert main(["split", str(root), "--out", str(trajectory), *extra]) == 2
         assert f"{trajectory}: would replace a file of the input" in one_line(capsys)
     assert checksums(root) == before
-    assert main(["split", str(root)]) == 0  # its own split.json is replaced without asking
+    assert main(["split", str(root)]) == 2  # an existing split.json (say the simulator's) is kept and named
+    assert "split.json: a split is already there (" in one_line(capsys)
+    assert main(["split", str(root), "--overwrite"]) == 0
     capsys.readouterr()
 
 
@@ -159,7 +161,7 @@ def test_a_full_disk_while_writing_grids_or_a_report_is_one_line_and_no_half_fil
         folder, args, output = episode_dir, ["grids", str(episode_dir)], episode_dir / "pressure_grids.npz"
     else:
         folder = shutil.copytree(sim_hdf5_root, tmp_path / "h5")
-        args, output = ["split", str(folder)], folder / "split.json"
+        args, output = ["split", str(folder), "--overwrite"], folder / "split.json"
     before = checksums(folder)
     result = limited_run(args, max_bytes=64)
     assert result.returncode == 2, result.stderr
