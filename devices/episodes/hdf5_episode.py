@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 
 from touchanything.devices.episodes.episode import Episode, align_note, synthetic_timestamps
-from touchanything.devices.episodes.episode_files import PressureFile, scalar_attrs
+from touchanything.devices.episodes.episode_files import PressureFile, range_problem, scalar_attrs
 from touchanything.devices.episodes.episode_streams import HandStream, TrackerStream
 from touchanything.devices.errors import DataError, describe
 from touchanything.devices.hand_pose import hands_valid
@@ -58,7 +58,8 @@ class Hdf5Frames:
             self._file.close()
 
 
-def _dataset(file: h5py.File, key: str, shape_tail: tuple, kinds: str) -> np.ndarray:
+def read_dataset(file: h5py.File, key: str, shape_tail: tuple, kinds: str) -> np.ndarray:
+    """Dataset `key` of shape (T, *shape_tail) and a dtype of one of `kinds`; DataError naming it otherwise."""
     try:
         if key not in file:
             raise DataError(file.filename, key, "missing dataset")
@@ -76,7 +77,7 @@ def _read(problems: list[str], file: h5py.File, key: str, shape_tail: tuple, kin
     try:
         if optional and key not in file:
             return None
-        return _dataset(file, key, shape_tail, kinds)
+        return read_dataset(file, key, shape_tail, kinds)
     except DataError as exc:
         problems.append(str(exc))
         return None
@@ -114,7 +115,10 @@ def _pressure(problems: list[str], file: h5py.File) -> PressureFile | None:
     if dropped:
         problems.append(describe(file.filename, "pressure", f"attribute(s) {', '.join(dropped)} not a number or "
                                  "true/false; ignored"))
-    return PressureFile(np.stack(grids, axis=1).astype(np.float32), attrs)
+    grids = np.stack(grids, axis=1).astype(np.float32)
+    if problem := range_problem(grids):
+        problems.append(describe(file.filename, "pressure", problem))
+    return PressureFile(grids, attrs)
 
 
 def _same_length(problems: list[str], file: h5py.File, arrays: dict[str, np.ndarray]) -> bool:
@@ -199,6 +203,11 @@ def open_hdf5_episode(path: Path) -> Episode:
         lengths["pressure"] = len(pressure.grids)
     others = {name: len(s.valid) for name, s in (("hands/wilor", wilor), ("hands/rokoko", rokoko), ("poses", trackers)) if s}
     frames = min(lengths.values()) if lengths else min(others.values(), default=0)
+    if frames == 0:
+        file.close()
+        empty = [name for name, count in {**lengths, **others}.items() if count == 0]
+        raise DataError(path, empty[0] if empty else None, "holds 0 frames; nothing to read"
+                        + (f" ({problems[0]})" if problems and not empty else ""))
     if note := align_note({**lengths, **others}, frames):
         problems.append(describe(path, None, note))
     stamps = _read(problems, file, "timestamps", (), "i", optional=True)
