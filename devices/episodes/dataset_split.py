@@ -12,7 +12,7 @@ import numpy as np
 
 from touchanything.devices.episodes.episode_files import read_json_file
 from touchanything.devices.episodes.episode_loader import find_hdf5_files
-from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS, WILOR_VALID_KEYS, read_dataset
+from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS, WILOR_VALID_KEYS, frame_count, read_dataset
 from touchanything.devices.errors import DataError, UserError, failure_line, require_fraction
 
 SPLIT_KEYS = ("train", "val", "test_seen", "test_unseen")
@@ -118,17 +118,6 @@ def quality_problem(path: Path, config: SplitConfig) -> str | None:
         return f"{frames} frames < {config.min_frames}"
     ratio = float(valid.any(axis=1).mean()) if len(valid) else 0.0
     return None if ratio >= config.min_wilor_valid else f"WiLoR valid ratio {ratio:.2f} < {config.min_wilor_valid}"
-
-
-def frame_count(file: h5py.File) -> int:
-    """The `num_frames` attribute of `metadata`; DataError naming it when it is missing or not a whole number."""
-    if "metadata" not in file or "num_frames" not in file["metadata"].attrs:
-        raise DataError(file.filename, "metadata", "attribute num_frames missing")
-    value = file["metadata"].attrs["num_frames"]
-    array = np.asarray(value)
-    if array.ndim != 0 or array.dtype.kind not in "iuf" or not np.isfinite(array) or array != np.round(array) or array < 0:
-        raise DataError(file.filename, "metadata", f"attribute num_frames {value!r} is not a whole number ≥ 0")
-    return int(array)
 
 
 def build_split(hdf5_root: Path, config: SplitConfig = SplitConfig()) -> tuple[dict[str, list[Path]], dict[Path, str]]:

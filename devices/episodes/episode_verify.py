@@ -24,6 +24,8 @@ def _reason(exc: BaseException) -> str:
 def _dataset_damage(path: Path, dataset: h5py.Dataset) -> str | None:
     """Read `dataset` chunk by chunk (whole when it is not chunked); a line for its unreadable chunks."""
     name = dataset.name.lstrip("/")
+    if dataset.size == 0:
+        return None
     if dataset.chunks is None:
         try:
             dataset[()]
@@ -57,7 +59,11 @@ def hdf5_damage(path: Path) -> list[str]:
             except H5_ERRORS as exc:
                 problems.append(describe(path, name, f"unreadable ({_reason(exc)})"))
                 return
-            if isinstance(item, h5py.Dataset) and (line := _dataset_damage(path, item)):
+            try:
+                line = _dataset_damage(path, item) if isinstance(item, h5py.Dataset) else None
+            except H5_ERRORS as exc:
+                line = describe(path, name, f"unreadable ({_reason(exc)})")
+            if line:
                 problems.append(line)
 
         try:

@@ -172,6 +172,21 @@ def _metadata(problems: list[str], file: h5py.File) -> dict:
         return {}
 
 
+def frame_count(file: h5py.File) -> int:
+    """The `num_frames` attribute of `metadata`; DataError naming it when it is missing, unreadable (a broken
+    link) or not a whole number."""
+    try:
+        if "metadata" not in file or "num_frames" not in file["metadata"].attrs:
+            raise DataError(file.filename, "metadata", "attribute num_frames missing")
+        value = file["metadata"].attrs["num_frames"]
+    except H5_ERRORS as exc:
+        raise DataError(file.filename, "metadata", f"attribute num_frames {_why(exc)}") from None
+    array = np.asarray(value)
+    if array.ndim != 0 or array.dtype.kind not in "iuf" or not np.isfinite(array) or array != np.round(array) or array < 0:
+        raise DataError(file.filename, "metadata", f"attribute num_frames {value!r} is not a whole number ≥ 0")
+    return int(array)
+
+
 def _fps(problems: list[str], path: Path, value) -> float:
     try:
         fps = float(np.asarray(value).item())
@@ -213,6 +228,11 @@ def open_hdf5_episode(path: Path) -> Episode:
     stamps = _read(problems, file, "timestamps", (), "i", optional=True)
     stamps = stamps[:frames].astype(np.int64) if stamps is not None and len(stamps) >= frames else synthetic_timestamps(frames)
     metadata = _metadata(problems, file)
+    try:
+        frame_count(file)
+    except DataError as exc:
+        if metadata and "missing" not in exc.problem:  # unread metadata is named above; a missing count is allowed
+            problems.append(str(exc))
     task = str(metadata.get("task_name", path.parent.name))
     if pressure is not None:
         pressure.grids = pressure.grids[:frames]
