@@ -7,7 +7,7 @@ from pathlib import Path
 from touchanything.app.sessions.episode_summary import NOT_VERIFIED, dataset_lines, episode_lines, verify_lines
 from touchanything.devices.episodes.episode_loader import episode_exists, open_episode
 from touchanything.devices.episodes.raw_episode import is_raw_episode
-from touchanything.devices.errors import UserError
+from touchanything.devices.errors import UserError, failure_line
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -27,8 +27,13 @@ def run(args: argparse.Namespace) -> int:
     if path.is_dir() and not is_raw_episode(path):
         lines, failed = dataset_lines(path, args.verify)
     else:
-        with open_episode(path) as episode:
-            lines = episode_lines(episode)
+        try:
+            with open_episode(path) as episode:
+                lines = episode_lines(episode)
+        except UserError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - damaged bytes can make a library raise anything: one line
+            raise UserError(failure_line(path, exc)) from None
         verified = verify_lines(path) if args.verify else [NOT_VERIFIED]
         lines, failed = lines + verified, int(len(verified) > 1)
     print("\n".join(lines))
