@@ -1,6 +1,7 @@
 """User-facing errors: the command line prints their message as one line, without a traceback."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 
@@ -23,6 +24,15 @@ class DataError(UserError):
         self.problem = problem
 
 
+def failure_line(source: str | Path, exc: BaseException) -> str:
+    """One line for an item of a batch that failed with any exception: a UserError's own message (it names
+    the file), else the item, the exception's type and the first line of its message."""
+    if isinstance(exc, UserError):
+        return str(exc)
+    text = str(exc).strip().splitlines()
+    return f"{source}: {exc.__class__.__name__}: {text[0]}" if text else f"{source}: {exc.__class__.__name__}"
+
+
 class DeviceAlreadyConnectedError(UserError):
     """`connect()` on a device that is already connected: disconnect it first."""
 
@@ -30,3 +40,17 @@ class DeviceAlreadyConnectedError(UserError):
 class DeviceNotConnectedError(UserError):
     """An operation that needs a connected device (its bound address, its negotiated format) was asked of
     one that is not connected: connect it first."""
+
+
+def require_finite_positive(name: str, value: float) -> float:
+    """`value` when it is a finite number > 0; else UserError naming the setting (`--seconds`, say) and value."""
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise UserError(f"{name} must be a finite number > 0, got {value}")
+    return value
+
+
+def require_fraction(name: str, value: float) -> float:
+    """`value` when it is a number in [0, 1]; else UserError naming the setting and value (NaN is refused)."""
+    if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
+        raise UserError(f"{name} must be a number in [0, 1], got {value}")
+    return value

@@ -56,7 +56,7 @@ def test_convert_info_and_split_on_a_dataset(raw_root, tmp_path, capsys):
     assert "converted 3, skipped 0, failed 0" in printed and "frames/s" in printed
     assert main(["convert", str(raw_root), str(out_root), "--skip-existing"]) == 0
     assert "converted 0, skipped 3" in capsys.readouterr().out
-    assert main(["split", str(out_root), "--min-frames", "10", "--unseen-ratio", "0.5"]) == 0
+    assert main(["split", str(out_root), "--min-frames", "10", "--unseen-ratio", "0.5", "--allow-empty"]) == 0
     assert "test_unseen 1" in capsys.readouterr().out
     assert main(["info", str(out_root)]) == 0
     out = capsys.readouterr().out
@@ -132,7 +132,7 @@ def test_grids_command_with_the_official_layout_and_a_repaired_column(episode_di
 
 @pytest.mark.parametrize("argv, message", [
     (["grids", "EP", "--repair-column", "middle:3"], "HAND:COLUMN"),
-    (["grids", "EP", "--min-scale", "0"], "--min-scale must be positive"),
+    (["grids", "EP", "--min-scale", "0"], "--min-scale must be a finite number > 0"),
     (["convert", "RAW", "OUT", "--workers", "0"], "--workers must be at least 1"),
     (["split", "NOWHERE"], "no .hdf5 trajectories"),
     (["demo", "NOWHERE"], "not found"),

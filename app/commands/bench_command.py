@@ -17,7 +17,7 @@ from touchanything.app.sessions.engine_choice import add_device_argument
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import check_report_folder, write_text
 from touchanything.inference.evaluation.bench import BenchPlan, bench_model
-from touchanything.inference.evaluation.bench_data import episode_paths, latency_clip, load_episode
+from touchanything.inference.evaluation.bench_data import episode_paths, first_latency_clip, load_episodes
 from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown
 from touchanything.inference.evaluation.bench_report import (
     GPU_OUTPUT_FILES,
@@ -72,7 +72,7 @@ def machine() -> str:
 def run_on_gpu(args: argparse.Namespace, device: torch.device) -> int:
     """The GPU settings (`bench_gpu`) into OUT/engine_gpu.{json,md}."""
     paths = episode_paths(args.data)
-    clip = latency_clip(paths[0], LATENCY_CLIP_FRAMES)
+    clip = first_latency_clip(paths, LATENCY_CLIP_FRAMES)
     started = time.perf_counter()
     rounds, per_round, naive_steps = (2, 10, 10) if args.quick else (5, 30, 30)
     rows, naive = bench_presets_on(device, clip, rounds, per_round, naive_steps,
@@ -103,15 +103,20 @@ def run(args: argparse.Namespace) -> int:
     models = load_models(args.models)
     if args.quick:
         models = dict(list(models.items())[:1])
-    clip = latency_clip(paths[0], LATENCY_CLIP_FRAMES)
+    clip = first_latency_clip(paths, LATENCY_CLIP_FRAMES)
     started = time.perf_counter()
     rows, naive = [], {}
 
     def progress(message: str) -> None:
         print(f"[{time.perf_counter() - started:6.0f} s] {message}", file=sys.stderr, flush=True)
 
+    failures: dict[str, None] = {}
     for name, model in models.items():
-        episodes = [load_episode(p, model.config.image_size, frames) for p in paths]
+        episodes, failed = load_episodes(paths, model.config.image_size, frames)
+        for line in failed:
+            if line not in failures:
+                progress(f"skipped: {line}")
+            failures[line] = None
         plan = BenchPlan(args.quick, rounds=4 if args.quick else 20, per_round=10, naive_steps=10 if args.quick else 30,
                          pose_only=args.pose_only_baseline)
         model_rows, naive[name] = bench_model(name, model, episodes, clip, plan, progress)
@@ -121,10 +126,13 @@ def run(args: argparse.Namespace) -> int:
     paper_rows, naive["paper"] = bench_model("paper", TouchAnything(preset("paper")).eval(), None, clip, paper_plan, progress)
     rows += paper_rows
     record = {"machine": machine(), "quick": args.quick, "accuracy_data": str(args.data),
-              "episodes": [str(p) for p in paths], "frames_per_episode": frames, "seconds": time.perf_counter() - started,
+              "episodes": [str(p) for p in paths], "failed": list(failures), "frames_per_episode": frames,
+              "seconds": time.perf_counter() - started,
               "rows": rows, "naive_over_streaming": {k: v["ratio"] for k, v in naive.items()}, "naive": naive,
               "targets": target_checks(rows, naive, next(iter(models)))}
     written = write_outputs(record, args.out)
     print(markdown(record))
     print("written: " + ", ".join(str(p) for p in written))
-    return 0
+    for line in failures:
+        print(f"touchanything bench: failed: {line}", file=sys.stderr)
+    return 1 if failures else 0

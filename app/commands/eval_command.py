@@ -5,6 +5,7 @@ import argparse
 import dataclasses
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -194,7 +195,7 @@ def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> 
     real = next((r for r, b in baseline_pairs(results) if b is result), None)
     if real is not None:
         record["vision_share"] = {mode: vision_share_summary(real, result, mode) for mode in ("stitched", "causal")}
-    return {**record, "trajectories": result.rows}
+    return {**record, "trajectories": result.rows, "failed": result.failures}
 
 
 def pose_only_model(args: argparse.Namespace, model: TactileModel, device) -> tuple[Path | None, TactileModel | None]:
@@ -266,6 +267,9 @@ def run(args: argparse.Namespace) -> int:
             recordings.close()
     if not group.is_main:
         return 0
+    failures = list(dict.fromkeys(line for result in results for line in result.failures))
+    for line in failures:
+        print(f"touchanything eval: failed: {line}", file=sys.stderr)
     table = markdown(results, args.split, baseline and str(baseline), {n: str(c) for n, (c, _) in baselines.items()})
     print(table)
     if args.out:
@@ -277,4 +281,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"results: {args.out / 'results.json'}, {args.out / 'results.md'}")
     if args.rerun is not None:
         print(f"rerun: {args.rerun} ({len(recordings.parts)} recordings; open with: rerun {args.rerun})")
-    return 0
+    if failures:
+        print(f"touchanything eval: {len(failures)} of {len(files)} trajectories could not be evaluated (listed above)",
+              file=sys.stderr)
+    return 1 if failures else 0

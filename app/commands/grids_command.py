@@ -2,11 +2,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from touchanything.devices.episodes.episode_writer import write_grids_from_glove
 from touchanything.devices.episodes.raw_episode import GLOVE_FILE, GRIDS_FILE
-from touchanything.devices.errors import UserError
+from touchanything.devices.errors import DataError, require_finite_positive
 from touchanything.devices.output_safety import check_output, named
 from touchanything.devices.snapshot import HANDS
 from touchanything.devices.tactile_layout import TactileLayout
@@ -34,15 +35,22 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if not args.min_scale > 0:
-        raise UserError(f"--min-scale must be positive, got {args.min_scale}")
+    """Every episode is tried; one that cannot be computed is named on stderr, its grids left as they were,
+    and the exit status is 1."""
+    require_finite_positive("--min-scale", args.min_scale)
     layout = TactileLayout.from_dir(args.layout) if args.layout else TactileLayout.default()
     config = TactileConfig(broken_columns=tuple(args.repair_column), min_scale=args.min_scale)
     for folder in args.episodes:  # every output checked before any work
         check_output(folder / GRIDS_FILE, (folder / GLOVE_FILE, args.layout), own=named(GRIDS_FILE))
+    failed = 0
     for folder in args.episodes:
-        grids = write_grids_from_glove(folder, layout, config)
+        try:
+            grids = write_grids_from_glove(folder, layout, config)
+        except DataError as exc:
+            print(f"touchanything grids: error: {exc}", file=sys.stderr)
+            failed += 1
+            continue
         print(f"{folder}: {len(grids.grids)} frames; baseline corrected left {grids.baseline_applied[0]}, "
               f"right {grids.baseline_applied[1]}; tactile max {grids.tactile_max.round(1).tolist()}, "
               f"bend max {grids.bend_max.round(1).tolist()}")
-    return 0
+    return 1 if failed else 0

@@ -20,6 +20,7 @@ from touchanything.app.sessions.rerun_output import (
     session_properties,
 )
 from touchanything.app.sessions.rerun_sink import RerunSink, seconds_since_first
+from touchanything.devices.errors import require_finite_positive
 from touchanything.devices.output_safety import add_overwrite_argument
 from touchanything.viz.hand_projection import pose_label
 
@@ -88,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
     from touchanything.viz.dashboard.dashboard import Dashboard
     from touchanything.viz.display import display_problem
 
+    if args.headless:
+        require_finite_positive("--seconds", args.seconds)
     if not args.headless and (problem := display_problem()):
         from touchanything.devices.errors import UserError
 

@@ -7,6 +7,8 @@ import argparse
 import time
 from pathlib import Path
 
+from touchanything.devices.errors import require_finite_positive
+
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("record", help="record the live rig of a scene as a raw EgoTouch episode")
@@ -23,6 +25,8 @@ def run(args: argparse.Namespace) -> int:
     from touchanything.devices.rig.recorder import Recorder, RecorderConfig
 
     check_output(args.out, (args.scene,), folder=True)
+    if args.seconds is not None:
+        require_finite_positive("--seconds", args.seconds)
     scene = read_scene(args.scene)
     recorder = Recorder(RecorderConfig(args.out, fsync_s=scene.recording.fsync_s))
     rig = LiveRig(scene)

@@ -9,6 +9,7 @@ from touchanything.devices.episodes.dataset_split import (
     SPLIT_KEYS,
     SplitConfig,
     build_split,
+    empty_split_problem,
     is_split_file,
     read_split,
     write_split,
@@ -28,6 +29,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="shorter trajectories are left out (default 30)")
     parser.add_argument("--min-wilor-valid", type=float, default=SplitConfig.min_wilor_valid,
                         help="trajectories with a smaller share of pose-valid frames are left out (default 0.3)")
+    parser.add_argument("--allow-empty", action="store_true",
+                        help="write the split even when its train or test lists are empty (refused otherwise)")
     parser.add_argument("--absolute", action="store_true", help="write absolute paths, as the official tool does")
     add_overwrite_argument(parser, "an existing split file (`convert` copies a split shipped with the raw data, e.g. the "
                            "simulator's object-aware one) or another file at --out")
@@ -52,6 +55,10 @@ def run(args: argparse.Namespace) -> int:
     check_existing_split(out, args.overwrite)
     config = SplitConfig(args.seed, args.unseen_ratio, args.min_frames, args.min_wilor_valid)
     split, excluded = build_split(args.hdf5_root, config)
+    if not args.allow_empty and (problem := empty_split_problem(split, excluded)):
+        reasons = "; ".join(f"{path}: {reason}" for path, reason in list(excluded.items())[:2])
+        raise UserError(f"{problem}; nothing written (--allow-empty writes it anyway)"
+                        + (f"; excluded e.g. {reasons}" if reasons else ""))
     write_split(out, split, absolute=args.absolute)
     print(f"{out}: " + ", ".join(f"{k} {len(split[k])}" for k in SPLIT_KEYS) + f"; excluded {len(excluded)}")
     for path, reason in excluded.items():

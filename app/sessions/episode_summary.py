@@ -16,9 +16,10 @@ from touchanything.devices.episodes.episode_loader import (
     is_plain_video,
     open_episode,
 )
+from touchanything.devices.episodes.episode_verify import verify_episode
 from touchanything.devices.episodes.lerobot_episode import find_lerobot_episodes
 from touchanything.devices.episodes.raw_episode import is_raw_episode
-from touchanything.devices.errors import DataError, UserError
+from touchanything.devices.errors import DataError, UserError, failure_line
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.metrics import contact_frames
@@ -82,33 +83,55 @@ def _problem_lines(problems: list[str], indent: str, limit: int | None = None) -
     return [f"{indent}- {p}" for p in shown] + more
 
 
-def dataset_lines(root: Path) -> list[str]:
-    """One line per trajectory under a dataset root (its first problems), the total and the split."""
+def verify_lines(path: Path, indent: str = "") -> list[str]:
+    """`info --verify`: every chunk and frame of the episode read; one line saying so, then the damage."""
+    damage = verify_episode(path)
+    head = f"{indent}verified  every chunk and video frame read: " + (f"{len(damage)} damaged part(s)" if damage else "no damage")
+    return [head] + _problem_lines(damage, indent + "  ")
+
+
+NOT_VERIFIED = "verified  no: video frames and image chunks were not read (info --verify reads and decodes every one)"
+
+
+def dataset_lines(root: Path, verify: bool = False) -> tuple[list[str], int]:
+    """One line per trajectory under a dataset root (its first problems), the total and the split; with
+    `verify`, each trajectory read in full (`verify_lines`). Returns the lines and the number of trajectories
+    that could not be read or (verified) hold damage; any failure of one trajectory is named, the rest read."""
     raw, hdf5, lerobot = find_raw_episodes(root), find_hdf5_files(root), find_lerobot_episodes(root)
     if not raw and not hdf5 and not lerobot:
         raise UserError(f"{root}: no episodes found (raw folders with chest.mp4, .hdf5 files, or a LeRobot dataset)")
     found = f"{len(raw)} raw episode(s), {len(hdf5)} HDF5 file(s)" + (f", {len(lerobot)} LeRobot episode(s)" if lerobot else "")
-    lines, total = [f"dataset   {root}: {found}"], 0
+    lines, total, failed = [f"dataset   {root}: {found}"], 0, 0
     for path in raw + hdf5 + lerobot:
+        name = os.path.relpath(path, root)
         try:
             with open_episode(path) as ep:
                 total += ep.num_frames
                 pose = _percent(ep.wilor.valid.any(axis=1)) if ep.wilor is not None else "n/a"
                 contact = _percent(contact_frames(ep.pressure.grids, TactileLayout.default().bend)) if ep.pressure else "n/a"
-                lines.append(f"  {path.relative_to(root)}: {ep.num_frames} frames, views {'+'.join(ep.view_names) or 'none'}, "
+                lines.append(f"  {name}: {ep.num_frames} frames, views {'+'.join(ep.view_names) or 'none'}, "
                              f"pose valid {pose}, contact {contact}, problems {len(ep.problems)}")
                 problems = [p.removeprefix(f"{root}{os.sep}") for p in ep.problems]
                 lines += _problem_lines(problems, "      ", ROOT_PROBLEMS_SHOWN)
-        except DataError as exc:
-            lines.append(f"  {path.relative_to(root)}: unreadable: {exc}")
-    lines.append(f"total     {total} frames ({total / 30 / 60:.1f} min at 30 fps)")
+        except Exception as exc:  # noqa: BLE001 - one trajectory that cannot be read never stops the others
+            lines.append(f"  {name}: unreadable: {failure_line(path, exc)}")
+            failed += 1
+            continue
+        if verify:
+            damage = verify_lines(path, "      ")
+            failed += len(damage) > 1
+            lines += damage
+    lines.append(f"total     {total} frames ({total / 30 / 60:.1f} min at 30 fps)"
+                 + (f"; {failed} trajector{'y' if failed == 1 else 'ies'} unreadable or damaged" if failed else ""))
     split_path = root / SPLIT_FILE
     if split_path.exists():
         try:
             lines.append(_split_line(read_split(split_path)))
         except DataError as exc:
             lines.append(f"split     unreadable: {exc}")
-    return lines
+    if not verify:
+        lines.append(NOT_VERIFIED)
+    return lines, failed
 
 
 def _split_line(split: dict[str, list[Path]]) -> str:

@@ -10,7 +10,7 @@ from pathlib import Path
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE
 from touchanything.devices.episodes.episode_loader import find_raw_episodes
 from touchanything.devices.episodes.hdf5_convert import ConversionResult, convert_trajectory, output_path
-from touchanything.devices.errors import UserError
+from touchanything.devices.errors import UserError, failure_line
 from touchanything.devices.output_safety import check_report_folder, replacing, write_text
 
 CONVERSION_REPORT = "conversion_report.txt"
@@ -69,9 +69,13 @@ def _run(todo: list[tuple[Path, Path]], workers: int, level: int):
             yield convert_trajectory(folder, target, level)
         return
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = [pool.submit(convert_trajectory, folder, target, level) for folder, target in todo]
+        futures = {pool.submit(convert_trajectory, folder, target, level): (folder, target) for folder, target in todo}
         for future in as_completed(futures):
-            yield future.result()
+            try:
+                yield future.result()
+            except Exception as exc:  # noqa: BLE001 - a worker that died (killed, out of memory) fails its trajectory
+                folder, target = futures[future]
+                yield ConversionResult(folder, target, "failed", error=failure_line(folder, exc))
 
 
 def summary_line(results: list[ConversionResult], wall_seconds: float) -> str:

@@ -12,8 +12,8 @@ import numpy as np
 
 from touchanything.devices.episodes.episode_files import read_json_file
 from touchanything.devices.episodes.episode_loader import find_hdf5_files
-from touchanything.devices.episodes.hdf5_episode import WILOR_VALID_KEYS
-from touchanything.devices.errors import DataError, UserError
+from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS, WILOR_VALID_KEYS, frame_count, read_dataset
+from touchanything.devices.errors import DataError, UserError, failure_line, require_fraction
 from touchanything.devices.output_safety import write_text
 
 SPLIT_KEYS = ("train", "val", "test_seen", "test_unseen")
@@ -88,14 +88,40 @@ class SplitConfig:
     min_wilor_valid: float = 0.3
 
 
+def check_split_config(config: SplitConfig) -> None:
+    """UserError naming the setting when a threshold is outside its domain (NaN included)."""
+    if not 0.0 <= config.unseen_ratio < 1.0:
+        raise UserError(f"--unseen-ratio must be a number in [0, 1), got {config.unseen_ratio}")
+    require_fraction("--min-wilor-valid", config.min_wilor_valid)
+    if config.min_frames < 0:
+        raise UserError(f"--min-frames must be at least 0, got {config.min_frames}")
+
+
+def empty_split_problem(split: dict[str, list[Path]], excluded: dict[Path, str]) -> str | None:
+    """Why a split cannot be trained and tested on (an empty train list, or no test trajectory), or None."""
+    empty = [name for name, lists in (("train", ("train",)), ("test", ("test_seen", "test_unseen")))
+             if not any(split.get(key) for key in lists)]
+    if not empty:
+        return None
+    kept = sum(len(split.get(key, [])) for key in SPLIT_KEYS)
+    return f"the {' and '.join(empty)} list(s) would be empty ({kept} trajectories kept, {len(excluded)} excluded)"
+
+
 def quality_problem(path: Path, config: SplitConfig) -> str | None:
-    """Why a trajectory fails the quality filter, or None. Pose-valid = at least one valid WiLoR hand."""
+    """Why a trajectory fails the quality filter, or None. Pose-valid = at least one valid WiLoR hand. A
+    trajectory that cannot be read (any error) is excluded with the reason, naming the dataset or attribute."""
     try:
         with h5py.File(path, "r") as file:
-            frames = int(file["metadata"].attrs["num_frames"])
-            valid = np.stack([file[k][()] for k in WILOR_VALID_KEYS], axis=1).astype(bool)
-    except (OSError, KeyError, ValueError, RuntimeError, TypeError) as exc:
-        return f"unreadable ({exc})"
+            frames = frame_count(file)
+            valid = np.stack([read_dataset(file, k, (), "iub") for k in WILOR_VALID_KEYS], axis=1).astype(bool)
+            short = [f"{key} holds {file[key].shape[0]} frames" for key in IMAGE_KEYS.values()
+                     if key in file and file[key].shape[0] < frames]
+    except DataError as exc:
+        return f"unreadable ({exc.field + ': ' if exc.field else ''}{exc.problem})"
+    except Exception as exc:  # noqa: BLE001 - h5py raises many kinds for damaged files; each excludes the file
+        return f"unreadable ({failure_line(path, exc).removeprefix(f'{path}: ')})"
+    if short:
+        return f"{short[0]} but metadata num_frames is {frames}"
     if frames < config.min_frames:
         return f"{frames} frames < {config.min_frames}"
     ratio = float(valid.any(axis=1).mean()) if len(valid) else 0.0
@@ -107,8 +133,7 @@ def build_split(hdf5_root: Path, config: SplitConfig = SplitConfig()) -> tuple[d
 
     Files are `<root>/<Scene>/<Task>/<id>.hdf5`. Returns the split and the excluded files with reasons.
     """
-    if not 0.0 <= config.unseen_ratio < 1.0:
-        raise UserError(f"--unseen-ratio must be in [0, 1), got {config.unseen_ratio}")
+    check_split_config(config)
     files = find_hdf5_files(hdf5_root)
     if not files:
         raise UserError(f"{hdf5_root}: no .hdf5 trajectories found")

@@ -45,6 +45,17 @@ def scalar_attrs(found: dict) -> tuple[dict, list[str]]:
     return attrs, dropped
 
 
+def range_problem(grids: np.ndarray) -> str | None:
+    """What is wrong when pressure values (NaN = outside the layout) leave [0, 1], or None."""
+    values = np.asarray(grids, np.float64)
+    outside = ~np.isnan(values) & ((values < 0) | (values > 1))
+    if not outside.any():
+        return None
+    bad = values[outside]
+    return (f"{int(outside.sum())} value(s) outside [0, 1] (from {bad.min():.4g} to {bad.max():.4g}); "
+            "metrics divide the trajectory by its maximum (the official fallback)")
+
+
 def _load_npz(path: Path) -> dict[str, np.ndarray]:
     try:
         with np.load(path, allow_pickle=False) as data:
@@ -79,7 +90,10 @@ def read_pressure_grids(path: Path) -> PressureFile:
         raise DataError(path, GRID_KEYS[1], f"has {right.shape[0]} frames but {GRID_KEYS[0]} has {left.shape[0]}")
     attrs, dropped = scalar_attrs({key: value for key, value in data.items() if key not in GRID_KEYS})
     problems = [describe(path, key, "expected a single number or true/false; ignored") for key in dropped]
-    return PressureFile(np.stack([left, right], axis=1).astype(np.float32), attrs, problems)
+    grids = np.stack([left, right], axis=1).astype(np.float32)
+    if problem := range_problem(grids):
+        problems.append(describe(path, "grids", problem))
+    return PressureFile(grids, attrs, problems)
 
 
 def save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:

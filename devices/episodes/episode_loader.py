@@ -2,6 +2,7 @@
 any plain video (an ego-only episode without poses or pressure)."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -79,15 +80,39 @@ def open_video_episode(path: Path) -> Episode:
 
 
 def find_raw_episodes(root: Path) -> list[Path]:
-    """Raw episode folders under `root` (itself included), at most 4 levels deep, sorted."""
+    """Raw episode folders under `root` (itself included), at most 4 levels deep, sorted. Symbolic links to
+    folders are followed; an episode's path is where its link stands, and a folder reached twice (two links,
+    or a link loop) is read once."""
     root = Path(root)
-    found, level = [], [root]
+    found, level, seen = [], [root], set()
     for _ in range(MAX_DEPTH + 1):
+        level = [p for p in level if _first_visit(p, seen)]
         found += [p for p in level if is_raw_episode(p)]
         level = sorted(c for p in level if not is_raw_episode(p) for c in p.iterdir() if c.is_dir())
     return sorted(found)
 
 
 def find_hdf5_files(root: Path) -> list[Path]:
-    """HDF5 trajectory files under `root`, sorted."""
-    return sorted(p for p in Path(root).rglob("*") if p.is_file() and is_hdf5_path(p))
+    """HDF5 trajectory files under `root`, sorted. Symbolic links to folders are followed (a file's path is
+    where its link stands; a folder reached twice, by two links or a link loop, is read once)."""
+    found, seen = [], set()
+    for folder, subfolders, files in os.walk(root, followlinks=True):
+        if not _first_visit(Path(folder), seen):
+            subfolders.clear()
+            continue
+        found += [Path(folder) / name for name in files if is_hdf5_path(Path(name)) and (Path(folder) / name).is_file()]
+    return sorted(found)
+
+
+def _first_visit(folder: Path, seen: set[tuple[int, int]]) -> bool:
+    """True the first time the real folder behind `folder` is met (recorded in `seen`); False after, or when
+    it cannot be read."""
+    try:
+        status = folder.stat()
+    except OSError:
+        return False
+    key = (status.st_dev, status.st_ino)
+    if key in seen:
+        return False
+    seen.add(key)
+    return True

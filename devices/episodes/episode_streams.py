@@ -124,8 +124,9 @@ def read_trackers(path: Path) -> tuple[TrackerStream, list[str]]:
                 continue
             trans = _floats(entry.get("trans") if isinstance(entry, dict) else None, 3)
             rot = _floats(entry.get("rot") if isinstance(entry, dict) else None, 4)
-            if trans is None or rot is None:
-                bad.add(f"poses.{role}", line_numbers[i], "expected trans[3] and rot[4] finite numbers")
+            if trans is None or rot is None or np.linalg.norm(rot) < 1e-6:
+                bad.add(f"poses.{role}", line_numbers[i], "expected trans[3] and rot[4] finite numbers, rot of non-zero "
+                        "length; pose dropped")
                 continue
             poses[i, r] = np.concatenate([trans, rot])
             valid[i, r] = True
@@ -141,14 +142,19 @@ def trackers_row(frame_index: int, poses: np.ndarray, valid: np.ndarray) -> dict
     return {"frame_index": int(frame_index), "poses": entries}
 
 
-def _glove_sample(entry: object) -> tuple[np.ndarray, np.ndarray] | None:
-    if not isinstance(entry, dict):
-        return None
-    raw = _floats(entry.get("raw"), 256)
+def _glove_sample(entry: object) -> tuple[np.ndarray, np.ndarray] | tuple[str, str]:
+    """(raw uint8, quaternion) of one hand's sample, or (field, what is wrong). A missing `quat_wxyz` is the
+    identity; one that is present must be 4 finite numbers of non-zero length (never silently replaced)."""
+    raw = _floats(entry.get("raw"), 256) if isinstance(entry, dict) else None
     if raw is None or raw.min() < 0 or raw.max() > 255 or np.any(raw != np.round(raw)):
-        return None
-    quat = _floats(entry.get("quat_wxyz", IDENTITY_WXYZ), 4)
-    return raw.astype(np.uint8), (quat if quat is not None else np.array(IDENTITY_WXYZ))
+        return "", "expected raw[256] integers 0–255 and quat_wxyz[4]; sample dropped"
+    if "quat_wxyz" not in entry:
+        return raw.astype(np.uint8), np.array(IDENTITY_WXYZ)
+    quat = _floats(entry["quat_wxyz"], 4)
+    if quat is None or np.linalg.norm(quat) < 1e-6:
+        text = repr(entry["quat_wxyz"])
+        return ".quat_wxyz", f"{text if len(text) <= 60 else text[:57] + '...'} is not 4 finite numbers of non-zero length; sample dropped"
+    return raw.astype(np.uint8), quat
 
 
 def read_glove(path: Path) -> tuple[GloveStream, list[str]]:
@@ -171,8 +177,8 @@ def read_glove(path: Path) -> tuple[GloveStream, list[str]]:
             if row.get(hand) is None:
                 continue
             sample = _glove_sample(row[hand])
-            if sample is None:
-                bad.add(hand, line_numbers[i], "expected raw[256] integers 0–255 and quat_wxyz[4]; sample dropped")
+            if isinstance(sample[0], str):
+                bad.add(hand + sample[0], line_numbers[i], sample[1])
                 continue
             raw[i, h], quat[i, h] = sample
             present[i, h] = True

@@ -48,8 +48,16 @@ class EpisodeFrame:
 
 def write_grids_from_glove(folder: Path, layout: TactileLayout | None = None, config: TactileConfig = TactileConfig(),
                            sync: bool = False) -> PressureGrids:
-    """Compute `pressure_grids.npz` of an episode folder from its `jq_pressure.json` (`sync`: see `_write_grids`)."""
-    stream, _ = read_glove(Path(folder) / GLOVE_FILE)
+    """Compute `pressure_grids.npz` of an episode folder from its `jq_pressure.json` (`sync`: see `_write_grids`).
+
+    A stream without one usable hand sample (empty, or every sample malformed or non-finite) raises DataError
+    before anything is written: the existing grids are kept rather than replaced by meaningless ones."""
+    path = Path(folder) / GLOVE_FILE
+    stream, problems = read_glove(path)
+    if not stream.present.any():
+        reason = "no frames" if len(stream.present) == 0 else f"none of its {len(stream.present)} frames holds a usable sample"
+        detail = f" ({problems[0]})" if problems else ""
+        raise DataError(path, None, f"cannot compute grids: {reason}{detail}; {GRIDS_FILE} left as it was")
     return _write_grids(Path(folder), stream.raw, layout or TactileLayout.default(), config, sync=sync)
 
 

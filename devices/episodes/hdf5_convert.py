@@ -5,6 +5,7 @@ Output: `<out>/<Scene>/<Task>/<trajectory_id>.hdf5`, written to a temporary file
 """
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,7 +25,7 @@ from touchanything.devices.episodes.hdf5_episode import (
     WILOR_VALID_KEYS,
 )
 from touchanything.devices.episodes.raw_episode import MASKS_FILE, QUALITY_FILE, REQUIRED_FILES, WILOR_FILE, open_raw_episode
-from touchanything.devices.errors import DataError, UserError
+from touchanything.devices.errors import DataError, failure_line
 from touchanything.devices.output_safety import replacing
 
 DUPLICATE_ISSUE_RATIO = 0.20
@@ -45,8 +46,9 @@ class ConversionResult:
 
 
 def output_path(folder: Path, raw_root: Path, out_root: Path) -> Path:
-    """`<out>/<Scene>/<Task>/<trajectory_id>.hdf5` mirroring the folder's place under the raw root."""
-    rel = Path(folder).resolve().relative_to(Path(raw_root).resolve())
+    """`<out>/<Scene>/<Task>/<trajectory_id>.hdf5` mirroring the folder's place under the raw root: where it
+    stands, so an episode folder that is a symbolic link to elsewhere keeps its place (no links are resolved)."""
+    rel = Path(os.path.abspath(folder)).relative_to(os.path.abspath(raw_root))
     if rel == Path("."):
         return Path(out_root) / f"{Path(folder).name}.hdf5"
     return Path(out_root) / rel.parent / f"{rel.name}.hdf5"
@@ -168,8 +170,9 @@ def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4)
                 _write_attrs(file, episode, frames, result.quality)
         result.status, result.frames = "converted", frames
         result.quality["wilor_valid_ratio"] = _pose_ratio(episode, frames)
-    except (DataError, UserError, OSError) as exc:
-        result.error = str(exc)
+    except Exception as exc:  # noqa: BLE001 - any failure of one trajectory (a library error on damaged
+        # bytes included) is that trajectory's result; the batch goes on
+        result.error = failure_line(folder, exc)
     result.seconds = time.perf_counter() - started
     return result
 

@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 
 from touchanything.devices.episodes.episode import Episode, align_note, synthetic_timestamps
-from touchanything.devices.episodes.episode_files import PressureFile, scalar_attrs
+from touchanything.devices.episodes.episode_files import PressureFile, range_problem, scalar_attrs
 from touchanything.devices.episodes.episode_streams import HandStream, TrackerStream
 from touchanything.devices.errors import DataError, describe
 from touchanything.devices.hand_pose import hands_valid
@@ -58,7 +58,8 @@ class Hdf5Frames:
             self._file.close()
 
 
-def _dataset(file: h5py.File, key: str, shape_tail: tuple, kinds: str) -> np.ndarray:
+def read_dataset(file: h5py.File, key: str, shape_tail: tuple, kinds: str) -> np.ndarray:
+    """Dataset `key` of shape (T, *shape_tail) and a dtype of one of `kinds`; DataError naming it otherwise."""
     try:
         if key not in file:
             raise DataError(file.filename, key, "missing dataset")
@@ -76,7 +77,7 @@ def _read(problems: list[str], file: h5py.File, key: str, shape_tail: tuple, kin
     try:
         if optional and key not in file:
             return None
-        return _dataset(file, key, shape_tail, kinds)
+        return read_dataset(file, key, shape_tail, kinds)
     except DataError as exc:
         problems.append(str(exc))
         return None
@@ -114,7 +115,10 @@ def _pressure(problems: list[str], file: h5py.File) -> PressureFile | None:
     if dropped:
         problems.append(describe(file.filename, "pressure", f"attribute(s) {', '.join(dropped)} not a number or "
                                  "true/false; ignored"))
-    return PressureFile(np.stack(grids, axis=1).astype(np.float32), attrs)
+    grids = np.stack(grids, axis=1).astype(np.float32)
+    if problem := range_problem(grids):
+        problems.append(describe(file.filename, "pressure", problem))
+    return PressureFile(grids, attrs)
 
 
 def _same_length(problems: list[str], file: h5py.File, arrays: dict[str, np.ndarray]) -> bool:
@@ -168,6 +172,21 @@ def _metadata(problems: list[str], file: h5py.File) -> dict:
         return {}
 
 
+def frame_count(file: h5py.File) -> int:
+    """The `num_frames` attribute of `metadata`; DataError naming it when it is missing, unreadable (a broken
+    link) or not a whole number."""
+    try:
+        if "metadata" not in file or "num_frames" not in file["metadata"].attrs:
+            raise DataError(file.filename, "metadata", "attribute num_frames missing")
+        value = file["metadata"].attrs["num_frames"]
+    except H5_ERRORS as exc:
+        raise DataError(file.filename, "metadata", f"attribute num_frames {_why(exc)}") from None
+    array = np.asarray(value)
+    if array.ndim != 0 or array.dtype.kind not in "iuf" or not np.isfinite(array) or array != np.round(array) or array < 0:
+        raise DataError(file.filename, "metadata", f"attribute num_frames {value!r} is not a whole number ≥ 0")
+    return int(array)
+
+
 def _fps(problems: list[str], path: Path, value) -> float:
     try:
         fps = float(np.asarray(value).item())
@@ -199,11 +218,21 @@ def open_hdf5_episode(path: Path) -> Episode:
         lengths["pressure"] = len(pressure.grids)
     others = {name: len(s.valid) for name, s in (("hands/wilor", wilor), ("hands/rokoko", rokoko), ("poses", trackers)) if s}
     frames = min(lengths.values()) if lengths else min(others.values(), default=0)
+    if frames == 0:
+        file.close()
+        empty = [name for name, count in {**lengths, **others}.items() if count == 0]
+        raise DataError(path, empty[0] if empty else None, "holds 0 frames; nothing to read"
+                        + (f" ({problems[0]})" if problems and not empty else ""))
     if note := align_note({**lengths, **others}, frames):
         problems.append(describe(path, None, note))
     stamps = _read(problems, file, "timestamps", (), "i", optional=True)
     stamps = stamps[:frames].astype(np.int64) if stamps is not None and len(stamps) >= frames else synthetic_timestamps(frames)
     metadata = _metadata(problems, file)
+    try:
+        frame_count(file)
+    except DataError as exc:
+        if metadata and "missing" not in exc.problem:  # unread metadata is named above; a missing count is allowed
+            problems.append(str(exc))
     task = str(metadata.get("task_name", path.parent.name))
     if pressure is not None:
         pressure.grids = pressure.grids[:frames]

@@ -21,6 +21,8 @@ from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_ep
 from touchanything.devices.sim.episode_stats import CAMERAS, EpisodeStats
 from touchanything.devices.sim.pose_ambiguity import pose_statistics
 
+MAX_SEED = 2**32 - 1
+"""The largest --seed (every numpy generator, the legacy one included, takes 0 … 2³² − 1)."""
 UNSEEN_SHARE = 0.2
 CARD_JSON, CARD_MD = "dataset_card.json", "dataset_card.md"
 
@@ -38,6 +40,8 @@ def check_config(config: SimulationConfig) -> None:
         raise UserError(f"--episodes must be at least 1, got {config.episodes}")
     if not (np.isfinite(config.seconds) and config.seconds >= 1.0):
         raise UserError(f"--seconds must be at least 1, got {config.seconds}")
+    if not 0 <= config.seed <= MAX_SEED:
+        raise UserError(f"--seed must be an integer 0–{MAX_SEED}, got {config.seed}")
     if config.workers < 1:
         raise UserError(f"--workers must be at least 1, got {config.workers}")
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_raw_episodes, is_hdf5_path, open_episode
-from touchanything.devices.errors import UserError
+from touchanything.devices.errors import UserError, failure_line
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 from touchanything.devices.snapshot import Snapshot
 from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
@@ -65,11 +65,36 @@ def load_episode(path: Path, size: int, max_frames: int | None) -> BenchEpisode:
                             episode.wilor.joints[:frames].reshape(frames, 42, 3), episode.wilor.valid[:frames], gt[:frames])
 
 
+def load_episodes(paths: list[Path], size: int, max_frames: int | None) -> tuple[list[BenchEpisode], list[str]]:
+    """`load_episode` of every path; one that fails (any exception) is named in the second list with its reason
+    and the others are loaded. UserError when none loads."""
+    episodes, failures = [], []
+    for path in paths:
+        try:
+            episodes.append(load_episode(path, size, max_frames))
+        except Exception as exc:  # noqa: BLE001 - one bad trajectory never stops the benchmark
+            failures.append(failure_line(path, exc))
+    if not episodes:
+        raise UserError(f"no episode could be loaded for the accuracy benchmark ({failures[0]})")
+    return episodes, failures
+
+
 def latency_clip(path: Path, frames: int) -> list[Snapshot]:
     """The first `frames` snapshots of an episode at full camera resolution (preprocessing is timed too)."""
     with open_episode(path) as episode:
         source = ReplaySource(episode, ReplayConfig(speed=None))
         return [source.snapshot(i) for i in range(min(frames, episode.num_frames))]
+
+
+def first_latency_clip(paths: list[Path], frames: int) -> list[Snapshot]:
+    """`latency_clip` of the first of `paths` that can be read (the failures are named by `load_episodes`)."""
+    reasons = []
+    for path in paths:
+        try:
+            return latency_clip(path, frames)
+        except Exception as exc:  # noqa: BLE001 - any trajectory that reads serves for latency
+            reasons.append(failure_line(path, exc))
+    raise UserError(f"no episode could be read for the latency clip ({reasons[0]})")
 
 
 def resident_mb() -> float:

@@ -11,7 +11,7 @@ with every frame of every used view black (`preprocess.blank_frames`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +19,7 @@ import torch.distributed as dist
 
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.errors import UserError
+from touchanything.devices.errors import UserError, failure_line
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.view_sets import VIEW_SETS
 from touchanything.inference.evaluation.metrics import MetricAccumulator, aggregate, ground_truth_for_metrics
@@ -42,12 +42,13 @@ def trajectory_metrics(prediction: np.ndarray, gt: np.ndarray, bend: np.ndarray)
 class EvaluationResult:
     """rows: one dict per trajectory (path, scene, task, frames, stitched/causal metrics); blank: the
     pose-only twin (images blanked); baseline: the name of a baseline model evaluated beside the model ("" for
-    the model itself)."""
+    the model itself); failures: one line per trajectory that could not be evaluated (not in `rows`)."""
 
     views: str
     rows: list[dict]
     blank: bool = False
     baseline: str = ""
+    failures: list[str] = field(default_factory=list)
 
     @property
     def label(self) -> str:
@@ -88,19 +89,24 @@ def evaluate(model: TactileModel, files: list[Path], views: str, batch_size: int
     rows = []
     for position in range(group.rank, len(files), group.world):
         path = files[position]
-        with open_episode(path) as episode:
-            if episode.pressure is None:
-                raise UserError(f"{path}: no ground-truth pressure; cannot evaluate")
-            prediction = predict_trajectory(model, episode, VIEW_SETS[views], batch_size, ego_path, precision, on_frames,
-                                            blank or model.config.blank_images)
-            gt = ground_truth_for_metrics(episode.pressure.grids, bool(episode.pressure.attrs.get("normalized", False)))
-            row = {"path": str(path), "scene": episode.scene, "task": episode.task, "frames": episode.num_frames,
-                   "stitched": trajectory_metrics(prediction.stitched, gt, bend),
-                   "causal": trajectory_metrics(prediction.causal, gt, bend)}
-            on_trajectory and on_trajectory(row, episode, prediction, gt)
+        try:
+            with open_episode(path) as episode:
+                if episode.pressure is None:
+                    raise UserError(f"{path}: no ground-truth pressure; cannot evaluate")
+                prediction = predict_trajectory(model, episode, VIEW_SETS[views], batch_size, ego_path, precision,
+                                                on_frames, blank or model.config.blank_images)
+                gt = ground_truth_for_metrics(episode.pressure.grids, bool(episode.pressure.attrs.get("normalized", False)))
+                row = {"path": str(path), "scene": episode.scene, "task": episode.task, "frames": episode.num_frames,
+                       "stitched": trajectory_metrics(prediction.stitched, gt, bend),
+                       "causal": trajectory_metrics(prediction.causal, gt, bend)}
+                on_trajectory and on_trajectory(row, episode, prediction, gt)
+        except Exception as exc:  # noqa: BLE001 - one trajectory that fails is named; the others are evaluated
+            row = {"path": str(path), "error": failure_line(path, exc)}
         rows.append((position, row))
     if group.world > 1:
         gathered: list[list] = [[] for _ in range(group.world)]
         dist.all_gather_object(gathered, rows)
         rows = [item for part in gathered for item in part]
-    return EvaluationResult(views, [row for _, row in sorted(rows, key=lambda item: item[0])], blank)
+    ordered = [row for _, row in sorted(rows, key=lambda item: item[0])]
+    return EvaluationResult(views, [r for r in ordered if "error" not in r], blank,
+                            failures=[r["error"] for r in ordered if "error" in r])

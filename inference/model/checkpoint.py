@@ -48,7 +48,7 @@ def model_state(checkpoint: dict, path: Path) -> dict[str, torch.Tensor]:
 def load_state(model: TactileModel, state: dict[str, torch.Tensor], path: Path) -> None:
     """Strict load; mismatches are reported by name (a checkpoint for another preset is named as such). A
     TouchAnything backbone present under one official prefix only is copied to the other (the official model
-    holds it twice)."""
+    holds it twice). A tensor holding NaN or infinite values is refused, named."""
     expected = model.state_dict()
     state = dict(state)
     for have, want in (BACKBONE_PREFIXES, BACKBONE_PREFIXES[::-1]):
@@ -68,6 +68,8 @@ def load_state(model: TactileModel, state: dict[str, torch.Tensor], path: Path) 
         raise UserError(f"{path}: checkpoint does not match the configured architecture "
                         f"({model.config.backbone}, {model.config.image_size} px; is it for another preset "
                         f"or config?): {'; '.join(parts)}")
+    if damaged := next((k for k, v in state.items() if v.is_floating_point() and not bool(torch.isfinite(v).all())), None):
+        raise UserError(f"{path}: tensor {damaged} holds NaN or infinite values (a damaged or diverged checkpoint)")
     model.load_state_dict(state, strict=True)
 
 

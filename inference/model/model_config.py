@@ -9,6 +9,7 @@ training and are not looked at here. Absent keys take the official values.
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import ClassVar
@@ -24,7 +25,14 @@ from touchanything.inference.model.vit import BACKBONES, PATCH
 CLIP_LENGTH, FRAME_INTERVAL, TACTILE_SIZE, NUM_JOINTS = 8, 2, 21, 42
 SPAN = (CLIP_LENGTH - 1) * FRAME_INTERVAL + 1  # frames one clip covers
 IMAGENET_MEAN, IMAGENET_STD = [0.485, 0.456, 0.406], [0.229, 0.224, 0.225]
-LAYERS, HEADS, RATIO, DROPOUT = limits(1), limits(1), limits(0.0, None), limits(0.0, 1.0, high_open=True)
+MAX_IMAGE_SIZE, MAX_WINDOW, MAX_LAYERS, MAX_HEADS, MAX_RATIO, MAX_WIDTH = 1024, 512, 64, 64, 16.0, 16384
+"""Sane bounds of a config's sizes, checked before anything is built (a typo such as `image_size: 56000` would
+otherwise ask for gigabytes per frame); within them, `check` also compares the estimated activation memory
+with the machine's."""
+LAYERS, HEADS = limits(1, MAX_LAYERS), limits(1, MAX_HEADS)
+RATIO, DROPOUT = limits(0.0, MAX_RATIO), limits(0.0, 1.0, high_open=True)
+ACTIVATION_SHARE = 0.5
+"""A config whose estimated activation memory per frame exceeds this share of the machine's memory is refused."""
 
 
 VISION_TYPES = {"dinov2": BACKBONES, "conv": CONV_BACKBONES}
@@ -55,7 +63,7 @@ class TemporalTransformerConfig:
     num_heads: int = field(default=8, metadata=HEADS)
     mlp_ratio: float = field(default=4.0, metadata=RATIO)
     dropout: float = field(default=0.1, metadata=DROPOUT)
-    window_size: int = field(default=16, metadata=limits(CLIP_LENGTH))
+    window_size: int = field(default=16, metadata=limits(CLIP_LENGTH, MAX_WINDOW))
 
 
 @dataclass(frozen=True)
@@ -103,7 +111,7 @@ class TactileDecoderConfig:
 
     FIXED: ClassVar = {"num_joints": NUM_JOINTS, "tactile_size": TACTILE_SIZE}
     type: str = "joint_level"
-    conv_channels: int = field(default=128, metadata=limits(1))
+    conv_channels: int = field(default=128, metadata=limits(1, MAX_WIDTH))
     dropout: float = field(default=0.1, metadata=DROPOUT)
 
 
@@ -113,8 +121,8 @@ class BaselineConfig:
     (`single_frame_baseline`) — the backbone of `vision_encoder` pooled per view, and an MLP of `layers` ×
     `hidden` units per hand; of the other sections only `multi_view.view_dropout_prob` applies."""
 
-    hidden: int = field(default=512, metadata=limits(1))
-    layers: int = field(default=2, metadata=limits(1))
+    hidden: int = field(default=512, metadata=limits(1, MAX_WIDTH))
+    layers: int = field(default=2, metadata=LAYERS)
     dropout: float = field(default=0.1, metadata=DROPOUT)
 
 
@@ -189,11 +197,36 @@ class ModelConfig:
         patch = self.patch_size
         if self.image_size < patch or self.image_size % patch:
             raise fail("data.image_size", f"{self.image_size} is not a positive multiple of the patch size {patch}")
+        if self.image_size > MAX_IMAGE_SIZE:
+            raise fail("data.image_size", f"must be ≤ {MAX_IMAGE_SIZE}, got {self.image_size}")
+        needed, memory = activation_bytes(self), machine_memory_bytes()
+        if needed > ACTIVATION_SHARE * memory:
+            raise fail("data.image_size", f"{self.image_size} needs about {needed / 1e9:.1f} GB of activations per frame, "
+                       f"more than {ACTIVATION_SHARE:.0%} of this machine's {memory / 1e9:.1f} GB")
         for section in ("temporal_transformer", "multi_view", "pose_encoder", "fusion"):
             heads = getattr(self, section).num_heads
             if self.embed_dim % heads:
                 raise fail(f"model.{section}.num_heads", f"{heads} does not divide the width {self.embed_dim} of {self.backbone}")
         return self
+
+
+def activation_bytes(config: ModelConfig, views: int = 3) -> float:
+    """A rough upper estimate of the fp32 activations one frame of `views` views holds at its peak: the input
+    image, the backbone's widest stage (a conv backbone's first stage; a ViT block's tokens × 8 for qkv and
+    the MLP, plus every head's attention scores)."""
+    pixels, tokens = config.image_size ** 2, config.patches
+    spec = _backbone_spec(config.vision_encoder)
+    widest = tokens * spec.width * 8
+    if config.vision_encoder.type == "conv":
+        widest += pixels // 4 * spec.channels[0] * 2
+    else:
+        widest += spec.heads * tokens ** 2
+    return 4.0 * views * (pixels * 3 * 2 + widest)
+
+
+def machine_memory_bytes() -> float:
+    """The machine's physical memory."""
+    return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
 
 
 def with_backbone(config: ModelConfig, **changes) -> ModelConfig:
