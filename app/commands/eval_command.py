@@ -160,8 +160,13 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
 
 
 def _frame_count(path: Path) -> int:
-    with open_episode(path) as episode:
-        return episode.num_frames
+    """The trajectory's frames for the progress bar's total; 0 for one that cannot be read (the evaluation
+    names it and goes on)."""
+    try:
+        with open_episode(path) as episode:
+            return episode.num_frames
+    except Exception:  # noqa: BLE001 - any failure is the evaluation's to report, not the progress bar's
+        return 0
 
 
 def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: str, group: ProcessGroup,

@@ -9,6 +9,7 @@ from touchanything.devices.episodes.dataset_split import (
     SPLIT_KEYS,
     SplitConfig,
     build_split,
+    check_split_config,
     empty_split_problem,
     is_split_file,
     read_split,
@@ -50,10 +51,11 @@ def check_existing_split(out: Path, overwrite: bool) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    config = SplitConfig(args.seed, args.unseen_ratio, args.min_frames, args.min_wilor_valid)
+    check_split_config(config)  # settings first: a bad value is named before any file is looked at
     out = args.out or args.hdf5_root / SPLIT_FILE
     check_output(out, (args.hdf5_root,), args.overwrite, own=is_split_file)
     check_existing_split(out, args.overwrite)
-    config = SplitConfig(args.seed, args.unseen_ratio, args.min_frames, args.min_wilor_valid)
     split, excluded = build_split(args.hdf5_root, config)
     if not args.allow_empty and (problem := empty_split_problem(split, excluded)):
         reasons = "; ".join(f"{path}: {reason}" for path, reason in list(excluded.items())[:2])
