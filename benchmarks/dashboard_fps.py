@@ -2,7 +2,7 @@
 the engine and the dashboard, and the simulated live rig (scenes/sim.toml: its simulator runs on the same
 cores), one fresh process per run (dearpygui allows one dashboard per process).
 
-    python benchmarks/dashboard_fps.py [--frames 200] [--rounds 3] [--out docs/bench] [--before FILE]
+    python benchmarks/dashboard_fps.py [--frames 200] [--rounds 3] [--out docs/bench] [--before FILE] [--cpu-only]
 
 The CPU rows replay the sample with the nano model and measure, over a fixed window: the dashboard
 process's CPU (all its threads: display, llvmpipe, player, engine) and the X server's, paused and
@@ -101,7 +101,8 @@ def measure_cpu(setting: str, x_server: int | None) -> dict:
                     x_cpu_percent=None if x_server is None else 100 * (process_cpu_s(x_server) - x_cpu) / seconds,
                     display_fps=(dashboard.stats.frames - frames) / seconds,
                     predictions_per_s=predictions / seconds,
-                    latency_p50_ms=float(np.median(latency[-predictions:])) if predictions else None)
+                    latency_p50_ms=float(np.median(latency[-predictions:])) if predictions else None,
+                    load=os.getloadavg()[0])
             finally:
                 dashboard.close()
 
@@ -162,9 +163,9 @@ def cpu_table(rows: list[dict], before: list[dict]) -> list[str]:
         return "-" if not values else f"{np.median(values):.1f}{unit}"
 
     keys = (("cpu_percent", " %"), ("x_cpu_percent", " %"), ("display_fps", ""), ("predictions_per_s", ""),
-            ("latency_p50_ms", " ms"))
+            ("latency_p50_ms", " ms"), ("load", ""))
     titles = ("dashboard process CPU (% of a core)", "X server CPU", "display fps", "engine predictions/s",
-              "latency p50")
+              "latency p50", "load average (1 min)")
     lines = [f"| setting | {' | '.join(titles)} |", "|---|" + "---|" * len(titles)]
     for label, runs in (("before", before), ("after", rows)) if before else (("", rows),):
         for setting in CPU_SETTINGS:
@@ -182,13 +183,14 @@ def markdown(rows: list[dict], before: list[dict]) -> str:
              "## CPU share", "",
              f"The bundled sample with the nano model (torch fp32) in the dashboard; medians of the runs, each measured "
              f"over {WINDOW_S:g} s. Paused: the replay paused after its first prediction. Playing: from frame 0. "
-             "Beside a CPU-bound process: a second process spinning in pure Python for the whole run.", "",
+             "Beside a CPU-bound process: a second process spinning in pure Python for the whole run. The load average "
+             "is the machine's (other programs share its two cores).", "",
              *cpu_table(cpu_rows, [r for r in before if r["setting"] in CPU_SETTINGS]), "",
              "## Frame rate", "",
              "The bundled sample replayed at 30 fps through the engine into the dashboard (1280×720, everything "
              "shown); `python benchmarks/dashboard_fps.py`.", "",
              "| setting | display fps min / median / max | runs at ≥ 30 fps (the target) |", "|---|---|---|"]
-    for setting, _ in SETTINGS:
+    for setting in dict.fromkeys(r["setting"] for r in rows):
         fps = np.array([r["fps"] for r in rows if r["setting"] == setting])
         lines.append(f"| {setting} | {fps.min():.1f} / {np.median(fps):.1f} / {fps.max():.1f} | "
                      f"{int((fps >= 30).sum())} of {fps.size} |")
@@ -210,6 +212,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--out", type=Path, default=Path("docs/bench"))
     parser.add_argument("--before", type=Path, help="an earlier dashboard.json whose CPU rows are shown beside these")
+    parser.add_argument("--cpu-only", action="store_true", help="only the CPU rows (quicker)")
     args = parser.parse_args()
     before = json.loads(args.before.read_text())["rows"] if args.before else []
     server = ensure_display()
@@ -217,7 +220,7 @@ def main() -> None:
     try:
         rows = []
         for round_number in range(1, args.rounds + 1):
-            for name, tier in SETTINGS:
+            for name, tier in () if args.cpu_only else SETTINGS:
                 ticks = cpu_ticks()
                 with context.Pool(1) as pool:
                     result = pool.apply(measure, (tier, args.frames))
