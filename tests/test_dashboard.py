@@ -58,7 +58,7 @@ def summary(dashboard: Dashboard) -> dict:
             "shown_pressure": getattr(dashboard.shown.get("prediction"), "pressure", None),
             "cumulative": state.cumulative, "rolling": state.rolling, "truth": state.truth, "message": state.message,
             "model": state.model, "pressure": None if prediction is None else prediction.pressure,
-            "snapshot": state.snapshot is not None, "metric_frames": state.metric_frames}
+            "snapshot": state.snapshot is not None, "metric_frames": state.metric_frames, "note": dashboard.note}
 
 
 def replay_sample(shot: Path) -> dict:
@@ -78,6 +78,7 @@ def test_the_dashboard_replays_the_sample_with_bounded_lag(dashboard_display, tm
         assert last < 1.5 * first + 100, (first, last)  # no growth from start to end
         assert max(lags) < 3000  # a sanity bound; the growth check above is the property
 
+    assert result["note"] == f"screenshot saved: {shot.name}\nin {shot.parent}"  # the name never wraps apart
     image = cv2.imread(str(shot))[..., ::-1]
     rects = result["rects"]
     assert image.shape[:2] == (720, 1280)
