@@ -1,8 +1,13 @@
-"""Dashboard frame rate and display lag under Xvfb: the bundled sample replayed at 30 fps through the
-engine and the dashboard, and the simulated live rig (scenes/sim.toml: its simulator runs on the same
+"""Dashboard frame rate, display lag and CPU share under Xvfb: the bundled sample replayed at 30 fps through
+the engine and the dashboard, and the simulated live rig (scenes/sim.toml: its simulator runs on the same
 cores), one fresh process per run (dearpygui allows one dashboard per process).
 
-    python benchmarks/dashboard_fps.py [--frames 200] [--rounds 3] [--out docs/bench]
+    python benchmarks/dashboard_fps.py [--frames 200] [--rounds 3] [--out docs/bench] [--before FILE] [--cpu-only]
+
+The CPU rows replay the sample with the nano model and measure, over a fixed window: the dashboard
+process's CPU (all its threads: display, llvmpipe, player, engine) and the X server's, paused and
+playing, and the engine's predictions/s and capture-to-prediction latency while a second CPU-bound
+process runs beside it. `--before` takes an earlier dashboard.json and puts its CPU rows beside these.
 
 The settings are interleaved round by round (this machine's speed drifts), one row per run.
 
@@ -24,6 +29,9 @@ import numpy as np
 SETTINGS = (("no model", None), ("nano torch fp32", "torch fp32"), ("nano onnx int8", "onnx int8"),
             ("live sim rig, nano torch fp32", "live"))
 LIVE_SCENE = Path("scenes/sim.toml")
+CPU_SETTINGS = ("paused", "playing", "playing beside a CPU-bound process")
+WINDOW_S = 5.0
+"""Each CPU row measures over this window (within the 10 s sample: playing rows restart it at frame 0)."""
 
 
 def measure(tier: str | None, frames: int) -> dict:
@@ -55,6 +63,71 @@ def measure(tier: str | None, frames: int) -> dict:
             "engine_fps": engine_fps}
 
 
+def measure_cpu(setting: str, x_server: int | None) -> dict:
+    """One CPU row: the sample with the nano model in the dashboard, driven from a thread (paused, or
+    playing from frame 0) and measured over WINDOW_S once the first prediction is on screen."""
+    import threading
+
+    from touchanything.app.sessions.bundled import sample_episodes
+    from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, default_checkpoint
+    from touchanything.app.sessions.replay_session import ReplaySession
+    from touchanything.devices.episodes.episode_loader import open_episode
+    from touchanything.devices.snapshot import VIEW_NAMES
+    from touchanything.viz.dashboard.dashboard import Dashboard
+
+    choice = ModelChoice(default_checkpoint())
+    result: dict = {}
+    with open_episode(sample_episodes()[0]) as episode:
+        session = ReplaySession(episode, build_engine(choice, VIEW_NAMES), choice).start()
+        dashboard = Dashboard(session)
+
+        def drive() -> None:
+            try:
+                while session.state().prediction is None:
+                    time.sleep(0.05)
+                if setting == "paused":
+                    session.pause()
+                else:
+                    session.seek(0)
+                time.sleep(1.0)
+                frames, processed = dashboard.stats.frames, session.live.stats.processed
+                wall, cpu, x_cpu = time.monotonic(), time.process_time(), process_cpu_s(x_server)
+                time.sleep(WINDOW_S)
+                seconds = time.monotonic() - wall
+                latency = session.state().history["latency_ms"]
+                predictions = session.live.stats.processed - processed
+                result.update(
+                    cpu_percent=100 * (time.process_time() - cpu) / seconds,
+                    x_cpu_percent=None if x_server is None else 100 * (process_cpu_s(x_server) - x_cpu) / seconds,
+                    display_fps=(dashboard.stats.frames - frames) / seconds,
+                    predictions_per_s=predictions / seconds,
+                    latency_p50_ms=float(np.median(latency[-predictions:])) if predictions else None,
+                    load=os.getloadavg()[0])
+            finally:
+                dashboard.close()
+
+        thread = threading.Thread(target=drive, daemon=True)
+        thread.start()
+        dashboard.run()
+        thread.join(5)
+    return result
+
+
+def process_cpu_s(pid: int | None) -> float:
+    """CPU seconds (user + system) used so far by process `pid` (0 for None)."""
+    if pid is None:
+        return 0.0
+    with open(f"/proc/{pid}/stat") as stat:
+        fields = stat.read().rpartition(")")[2].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def busy() -> None:
+    """The competing process: one core's worth of pure Python work until terminated."""
+    while True:
+        pass
+
+
 def cpu_ticks() -> np.ndarray:
     """The machine's CPU time counters (/proc/stat: user nice system idle iowait irq softirq steal ...)."""
     with open("/proc/stat") as stat:
@@ -83,12 +156,41 @@ def ensure_display() -> subprocess.Popen | None:
     return server
 
 
-def markdown(rows: list[dict]) -> str:
-    lines = ["# Dashboard frame rate (Xvfb, llvmpipe, 2-core CPU)", "",
+def cpu_table(rows: list[dict], before: list[dict]) -> list[str]:
+    """Medians per CPU setting, after (these rows) and, when given, before."""
+    def cell(runs: list[dict], key: str, unit: str) -> str:
+        values = [r[key] for r in runs if r.get(key) is not None]
+        return "-" if not values else f"{np.median(values):.1f}{unit}"
+
+    keys = (("cpu_percent", " %"), ("x_cpu_percent", " %"), ("display_fps", ""), ("predictions_per_s", ""),
+            ("latency_p50_ms", " ms"), ("load", ""))
+    titles = ("dashboard process CPU (% of a core)", "X server CPU", "display fps", "engine predictions/s",
+              "latency p50", "load average (1 min)")
+    lines = [f"| setting | {' | '.join(titles)} |", "|---|" + "---|" * len(titles)]
+    for label, runs in (("before", before), ("after", rows)) if before else (("", rows),):
+        for setting in CPU_SETTINGS:
+            chosen = [r for r in runs if r["setting"] == setting]
+            if chosen:
+                name = f"{setting}, {label}" if label else setting
+                lines.append(f"| {name} | " + " | ".join(cell(chosen, key, unit) for key, unit in keys) + " |")
+    return lines
+
+
+def markdown(rows: list[dict], before: list[dict]) -> str:
+    cpu_rows = [r for r in rows if r["setting"] in CPU_SETTINGS]
+    rows = [r for r in rows if r["setting"] not in CPU_SETTINGS]
+    lines = ["# Dashboard frame rate and CPU share (Xvfb, llvmpipe, 2-core CPU)", "",
+             "## CPU share", "",
+             f"The bundled sample with the nano model (torch fp32) in the dashboard; medians of the runs, each measured "
+             f"over {WINDOW_S:g} s. Paused: the replay paused after its first prediction. Playing: from frame 0. "
+             "Beside a CPU-bound process: a second process spinning in pure Python for the whole run. The load average "
+             "is the machine's (other programs share its two cores).", "",
+             *cpu_table(cpu_rows, [r for r in before if r["setting"] in CPU_SETTINGS]), "",
+             "## Frame rate", "",
              "The bundled sample replayed at 30 fps through the engine into the dashboard (1280×720, everything "
              "shown); `python benchmarks/dashboard_fps.py`.", "",
              "| setting | display fps min / median / max | runs at ≥ 30 fps (the target) |", "|---|---|---|"]
-    for setting, _ in SETTINGS:
+    for setting in dict.fromkeys(r["setting"] for r in rows):
         fps = np.array([r["fps"] for r in rows if r["setting"] == setting])
         lines.append(f"| {setting} | {fps.min():.1f} / {np.median(fps):.1f} / {fps.max():.1f} | "
                      f"{int((fps >= 30).sum())} of {fps.size} |")
@@ -109,25 +211,41 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=200, help="frames per setting (keep within the 10 s sample)")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--out", type=Path, default=Path("docs/bench"))
+    parser.add_argument("--before", type=Path, help="an earlier dashboard.json whose CPU rows are shown beside these")
+    parser.add_argument("--cpu-only", action="store_true", help="only the CPU rows (quicker)")
     args = parser.parse_args()
+    before = json.loads(args.before.read_text())["rows"] if args.before else []
     server = ensure_display()
+    context = multiprocessing.get_context("spawn")
     try:
         rows = []
         for round_number in range(1, args.rounds + 1):
-            for name, tier in SETTINGS:
-                before = cpu_ticks()
-                with multiprocessing.get_context("spawn").Pool(1) as pool:
+            for name, tier in () if args.cpu_only else SETTINGS:
+                ticks = cpu_ticks()
+                with context.Pool(1) as pool:
                     result = pool.apply(measure, (tier, args.frames))
                 rows.append({"setting": name, "round": round_number, **result,
-                             "steal_percent": steal_percent(before, cpu_ticks())})
+                             "steal_percent": steal_percent(ticks, cpu_ticks())})
                 print(f"{name}, round {round_number}: {rows[-1]['fps']:.1f} fps", flush=True)
+            for name in CPU_SETTINGS:
+                competitor = context.Process(target=busy, daemon=True) if "CPU-bound" in name else None
+                if competitor is not None:
+                    competitor.start()
+                try:
+                    with context.Pool(1) as pool:
+                        result = pool.apply(measure_cpu, (name, server and server.pid))
+                finally:
+                    if competitor is not None:
+                        competitor.terminate()
+                rows.append({"setting": name, "round": round_number, **result})
+                print(f"{name}, round {round_number}: {result}", flush=True)
     finally:
         if server is not None:
             server.terminate()
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "dashboard.json").write_text(json.dumps({"rows": rows}, indent=2) + "\n")
-    (args.out / "dashboard.md").write_text(markdown(rows))
-    print(markdown(rows))
+    (args.out / "dashboard.md").write_text(markdown(rows, before))
+    print(markdown(rows, before))
 
 
 if __name__ == "__main__":

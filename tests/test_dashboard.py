@@ -58,11 +58,11 @@ def summary(dashboard: Dashboard) -> dict:
             "shown_pressure": getattr(dashboard.shown.get("prediction"), "pressure", None),
             "cumulative": state.cumulative, "rolling": state.rolling, "truth": state.truth, "message": state.message,
             "model": state.model, "pressure": None if prediction is None else prediction.pressure,
-            "snapshot": state.snapshot is not None, "metric_frames": state.metric_frames}
+            "snapshot": state.snapshot is not None, "metric_frames": state.metric_frames, "note": dashboard.note}
 
 
 def replay_sample(shot: Path) -> dict:
-    return summary(replay_in_dashboard(sample_episodes()[0], NANO, VIEW_NAMES, max_frames=240, screenshot=shot))
+    return summary(replay_in_dashboard(sample_episodes()[0], NANO, VIEW_NAMES, max_frames=150, screenshot=shot))
 
 
 def test_the_dashboard_replays_the_sample_with_bounded_lag(dashboard_display, tmp_path):
@@ -71,13 +71,14 @@ def test_the_dashboard_replays_the_sample_with_bounded_lag(dashboard_display, tm
     camera_lag, prediction_lag = result["camera_lag_ms"], result["prediction_lag_ms"]
     print(f"dashboard: {result['fps']:.1f} fps over {result['frames']} frames; camera lag p50 "
           f"{np.median(camera_lag):.0f} ms, prediction lag p50 {np.median(prediction_lag):.0f} ms")
-    assert result["frames"] >= 240 and result["fps"] > 5
+    assert result["frames"] >= 150  # frames are rendered when something changed: about 30 a second while playing
     for lags in (camera_lag, prediction_lag):
         assert len(lags) > 30
         first, last = third_means(lags)
         assert last < 1.5 * first + 100, (first, last)  # no growth from start to end
         assert max(lags) < 3000  # a sanity bound; the growth check above is the property
 
+    assert result["note"] == f"screenshot saved: {shot.name}\nin {shot.parent}"  # the name never wraps apart
     image = cv2.imread(str(shot))[..., ::-1]
     rects = result["rects"]
     assert image.shape[:2] == (720, 1280)

@@ -14,6 +14,7 @@ from touchanything.viz.pressure_panel import (
     maps_width,
     pressure_maps,
     put_text,
+    unposed_as_nan,
 )
 
 CELL = 7
@@ -93,3 +94,24 @@ def test_a_title_is_drawn_once_with_its_shadow_under_it(text):
     assert light.size and dark.size
     assert light[-1] - 1 <= dark[-1] <= light[-1] + 2  # no stray glyph of a wider outline behind the text
     assert light[0] - 1 <= dark[0] <= light[0] + 2
+
+
+def test_a_hand_without_a_pose_reads_no_pose_not_zero_pressure():
+    """Bare-hand replay: a hand the engine did not predict (it holds 0 there) is drawn as background with its
+    label, never as the blue of zero pressure; the predicted hand keeps its map."""
+    from touchanything.inference.engine.prediction import Prediction
+    from touchanything.viz.dashboard.dashboard_panels import pressure_views
+    from touchanything.viz.dashboard.dashboard_state import SessionState
+
+    pressure = np.zeros((2, 21, 21), np.float32)
+    prediction = Prediction(frame_index=0, t_us=0, pressure=pressure, hands_predicted=(True, False),
+                            views_used=("ego",), latency_ms=1.0)
+    views = pressure_views(SessionState(prediction=prediction, truth=np.full((2, 21, 21), 0.3, np.float32)), CELL, 0.1, False)
+    for name in ("predicted", "error"):
+        image, title = views[name]
+        right = image[:, SIZE + MAP_GAP:2 * SIZE + MAP_GAP].astype(int)
+        assert not (np.abs(right - PRESSURE_LUT[0]).max(axis=-1) < 20).any(), name
+        assert (np.abs(right - BACKGROUND).max(axis=-1) < 8).mean() > 0.8 and (right > 200).all(axis=-1).sum() > 10, name
+    assert (cell_colour(views["predicted"][0], 0, 5, 5) == PRESSURE_LUT[0]).all()
+    assert views["predicted"][1] == "Predicted pressure (right: no pose)"
+    assert np.isnan(unposed_as_nan(pressure, (True, False))[1]).all() and (pressure == 0).all()  # a copy

@@ -37,15 +37,15 @@ def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred:
         if image is not None:
             frame[:CAMERA_HEIGHT, x:x + 480] = cv2.resize(image, (480, CAMERA_HEIGHT), interpolation=cv2.INTER_AREA)
         put_text(frame, label if image is not None else f"{label}: no image", (x + 8, 22), 0.6)
-    panels = [(gt, "Ground Truth Pressure", False), (pred, "Predicted Pressure", False),
-              (None if gt is None or pred is None else pred - gt, "Prediction - Ground Truth", True)]
-    for k, (grids, title, error) in enumerate(panels):
+    panels = [(gt, "Ground Truth Pressure", False, "no glove"), (pred, "Predicted Pressure", False, "no pose"),
+              (None if gt is None or pred is None else pred - gt, "Prediction - Ground Truth", True, "n/a")]
+    for k, (grids, title, error, empty) in enumerate(panels):
         x = k * 480
         if grids is None:
             put_text(frame, f"{title}: n/a", (x + 10, CAMERA_HEIGHT + 30), 0.6)
             continue
         frame[CAMERA_HEIGHT:CAMERA_HEIGHT + PANEL_HEIGHT, x:x + 480] = pressure_panel(grids, title, 480, PANEL_HEIGHT,
-                                                                                     error=error)
+                                                                                     error=error, empty=empty)
     top = CAMERA_HEIGHT + PANEL_HEIGHT
     for k, line in enumerate(reversed(caption)):
         put_text(frame, line, (10, top - 8 - 18 * k), 0.45, CAPTION_COLOURS[len(caption) - 1 - k])

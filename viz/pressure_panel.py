@@ -1,5 +1,7 @@
 """Pressure panels: 21×21 hand maps on one fixed colour scale (never rescaled per frame), NaN cells as
-background, nearest-neighbour upscaling, titles and a colour bar — as pure numpy/OpenCV images."""
+background, nearest-neighbour upscaling, titles and a colour bar — as pure numpy/OpenCV images. A hand
+with no value at all (a hand the model did not predict, see `unposed_as_nan`) is drawn as background
+with a label saying why, never as a map that would read as zero pressure."""
 from __future__ import annotations
 
 import functools
@@ -53,14 +55,25 @@ def colour_bar(height: int, width: int = 14, error: bool = False) -> np.ndarray:
     return bar
 
 
+def unposed_as_nan(pressure: np.ndarray, hands_predicted: tuple[bool, bool]) -> np.ndarray:
+    """A prediction's (2, 21, 21) pressure for display: a hand that was not predicted (no pose; the engine
+    holds 0 there, "no contact" for the metrics) becomes all NaN, so that the maps label it instead."""
+    if all(hands_predicted):
+        return pressure
+    shown = np.array(pressure, np.float32)
+    shown[~np.asarray(hands_predicted, bool)] = np.nan
+    return shown
+
+
 def pressure_panel(grids: np.ndarray, title: str, width: int, height: int, error: bool = False,
                    labels: tuple[str, str] = ("Left Hand", "Right Hand"), outline: np.ndarray | None = None,
-                   threshold: float = 0.1) -> np.ndarray:
+                   threshold: float = 0.1, empty: str = "n/a") -> np.ndarray:
     """(2, 21, 21) → (height, width, 3) panel: title, both hands side by side, a colour bar. `outline`
-    (2, 21, 21), e.g. the measured pressure, draws its contact region (> threshold) as a contour."""
+    (2, 21, 21), e.g. the measured pressure, draws its contact region (> threshold) as a contour; a hand
+    without any value reads `empty`."""
     panel = _panel_frame(title, width, height, error, labels).copy()
     cell, top = panel_cell(width, height), 40
-    maps = pressure_maps(grids, cell, error, outline, threshold, bar=False)
+    maps = pressure_maps(grids, cell, error, outline, threshold, bar=False, empty=empty)
     panel[top:top + maps.shape[0], MAP_GAP:MAP_GAP + maps.shape[1]] = maps
     return panel
 
@@ -79,15 +92,20 @@ def maps_width(cell: int) -> int:
 
 
 def pressure_maps(grids: np.ndarray, cell: int, error: bool = False, outline: np.ndarray | None = None,
-                  threshold: float = 0.1, bar: bool = True) -> np.ndarray:
+                  threshold: float = 0.1, bar: bool = True, empty: str = "n/a") -> np.ndarray:
     """(2, 21, 21) → (21·cell, maps_width(cell), 3): both hand maps (optionally with the contact outline
-    of `outline`) and, with `bar`, the colour bar; without text (for the dashboard's textures)."""
+    of `outline`) and, with `bar`, the colour bar; without titles (for the dashboard's textures). A hand
+    whose cells are all NaN is background with `empty` written on it (e.g. "no pose")."""
     size = 21 * cell
     image = np.empty((size, maps_width(cell) if bar else 2 * size + MAP_GAP, 3), np.uint8)
     image[:, size:size + MAP_GAP] = BACKGROUND
     image[:, 2 * size + MAP_GAP:] = BACKGROUND
     for h in range(2):
         left = h * (size + MAP_GAP)
+        if np.isnan(grids[h]).all():
+            image[:, left:left + size] = BACKGROUND
+            put_text(image, empty, (left + size // 2 - 4 * len(empty), size // 2), 0.45)
+            continue
         image[:, left:left + size] = hand_map(grids[h], cell, error)
         if outline is not None:
             draw_contact_outline(image[:, left:left + size], outline[h], cell, threshold)

@@ -16,6 +16,7 @@ from touchanything.viz.contact import contact_badges, hand_contact
 from touchanything.viz.hand3d_panel import hand3d_panel
 from touchanything.viz.hand_projection import draw_hands, pose_label
 from touchanything.viz.line_plot import LATENCY_PLOT_MS, PLOT_SAMPLES, line_plot
+from touchanything.viz.pressure_panel import unposed_as_nan
 
 
 def metric_text(value: float) -> str:
@@ -58,7 +59,8 @@ class ReplayFrameRenderer:
             images["ego"] = draw_hands(images["ego"], snapshot.joints, snapshot.joints_valid, shown)
         footer = footer_text(snapshot, self.total_frames, latest, metrics)
         hands = hand3d_panel(snapshot.joints, snapshot.joints_valid, truth, shown) if self.hand3d else None
-        return comparison_frame(images, truth, shown, footer, self._strip(shown, truth), hands, self.caption)
+        maps = None if shown is None or latest is None else unposed_as_nan(shown, latest.hands_predicted)
+        return comparison_frame(images, truth, maps, footer, self._strip(shown, truth), hands, self.caption)
 
     def _add(self, metrics: RunningMetrics | None, prediction: Prediction | None) -> None:
         rolling = metrics.rolling() if metrics is not None else None

@@ -1,5 +1,6 @@
-"""`touchanything demo [EPISODE]`: the bundled sample through the bundled model in the dashboard; with no
-display, a comparison video (cameras; measured, predicted and error maps) with a summary instead."""
+"""`touchanything demo [EPISODE]`: the bundled sample through the bundled model in the dashboard, played over
+and over until the window is closed; with no display, one pass into a comparison video (cameras; measured,
+predicted and error maps) with a summary instead."""
 from __future__ import annotations
 
 import argparse
@@ -18,7 +19,8 @@ DEMO_VIDEO = OUTPUT_DIR / "demo.mp4"
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
-    parser = commands.add_parser("demo", help="the bundled sample through the bundled model in the dashboard")
+    parser = commands.add_parser("demo", help="the bundled sample through the bundled model in the dashboard, "
+                                                                "looped until the window is closed")
     parser.add_argument("episode", type=Path, nargs="?", help="raw episode folder, .hdf5 trajectory, or any video file "
                                                               "(hands estimated from its frames; default: the bundled sample)")
     parser.add_argument("--headless", action="store_true", help="write the comparison video instead of a window")
@@ -50,6 +52,6 @@ def run(args: argparse.Namespace) -> int:
         replay_to_video(path, choice, VIEW_NAMES, args.out, args.hand3d, rerun)
         print(f"watch it with any video player: {args.out}")
     else:
-        stats = replay_in_dashboard(path, choice, VIEW_NAMES, rerun=rerun).stats
+        stats = replay_in_dashboard(path, choice, VIEW_NAMES, rerun=rerun, loop=True).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

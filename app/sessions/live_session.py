@@ -82,10 +82,6 @@ class LiveSession(EngineSession):
     def recording_status(self) -> str | None:
         return None if self.recorder is None else self.recorder.status()
 
-    @property
-    def can_record(self) -> bool:
-        return True
-
     def toggle_recording(self) -> None:
         """Start a new recording, or stop the current one (its folder is complete and replayable)."""
         if self.recorder is None:

@@ -19,13 +19,17 @@ from touchanything.viz.dashboard.dashboard_state import Playback, SourceStatus
 
 class ReplaySession(EngineSession):
     """Start with `start()`, end with `close()`. `pose_source`: "wilor" (the episode's file), "rokoko" or
-    "camera" (estimated from the ego view in the player thread, every frame in order)."""
+    "camera" (estimated from the ego view in the player thread, every frame in order). `loop`: play the
+    episode again from its start, engine and metrics afresh, until closed (else hold at its end)."""
 
     def __init__(self, episode: Episode, engine: StreamingEngine | None, choice: ModelChoice,
-                 message: str = "", pose_source: str = "wilor") -> None:
+                 message: str = "", pose_source: str = "wilor", loop: bool = False) -> None:
         super().__init__(engine, choice, message)
         self.episode = episode
-        self.source = ReplaySource(episode, ReplayConfig(speed=1.0, hold_at_end=True, pose_source=pose_source))
+        self.source = ReplaySource(episode, ReplayConfig(speed=1.0, loop=loop, hold_at_end=not loop,
+                                                         pose_source=pose_source))
+        self.passes = 1
+        """How many times playing reached the episode's first frame from its last (loop)."""
         self._speed = 1.0
         self.truth = None
         if episode.pressure is not None:
@@ -45,7 +49,13 @@ class ReplaySession(EngineSession):
         self.stop_engine()
 
     def _play(self) -> None:
+        last = self.episode.num_frames - 1
+        previous = None
         for snapshot in self.source:
+            if previous == last and snapshot.frame_index == 0:
+                self.passes += 1
+                self.restart()
+            previous = snapshot.frame_index
             self.submit(snapshot)
 
     def truth_of(self, snapshot: Snapshot) -> np.ndarray | None:
@@ -55,10 +65,13 @@ class ReplaySession(EngineSession):
         return Playback(self.source.position, self.episode.num_frames, self.source.paused, self._speed)
 
     def source_rows(self, snapshot: Snapshot | None) -> list[SourceStatus]:
-        rows = [SourceStatus("replay", True, self.frames.rate(), self.age_ms(snapshot and snapshot.t_us), 0,
+        age = None if self.source.paused else self.age_ms(snapshot and snapshot.t_us)  # paused: no new samples
+        rows = [SourceStatus("replay", True, self.frames.rate(), age, 0,
                              f"frame {snapshot.frame_index if snapshot else '-'} of {self.episode.num_frames}")]
         for name, status in (snapshot.source_status.items() if snapshot is not None else ()):
-            rows.append(SourceStatus(name, status not in ("absent", "no frame"), detail=status))
+            absent = status == "absent"  # the episode has no such stream
+            rows.append(SourceStatus(name, not absent and status != "no frame", detail="" if absent or status == "ok" else status,
+                                     in_scene=not absent))
         return rows
 
     def play(self) -> None:
@@ -79,9 +92,7 @@ class ReplaySession(EngineSession):
         self.source.set_speed(speed)
         self._speed = speed
 
-    @property
-    def can_record(self) -> bool:
-        return False
-
     def toggle_recording(self) -> None:
-        self.message = "recording is for the live rig; a replay is already recorded"
+        """A replay records nothing (it is a recording already): says so, and how to export it."""
+        self.message = ("Record is for the live rig: this replay is a recording already. To keep what you see, "
+                        "export it: touchanything replay EPISODE --headless (a comparison video).")

@@ -93,10 +93,14 @@ class ReplaySource:
         return self._paused
 
     def seek(self, frame: int) -> None:
-        """Continue from `frame` (clamped to the episode); the pacing schedule restarts there."""
+        """Continue from `frame` (clamped to the episode); the pacing schedule restarts there. While paused,
+        `frame` itself is released (a player shows the frame it was moved to), and only it: steps asked for
+        before the seek are dropped."""
         with self._lock:
             self._next = int(np.clip(frame, 0, max(self.episode.num_frames - 1, 0)))
             self._due = None
+            if self._paused:
+                self._steps = 1
             self._lock.notify_all()
 
     def set_speed(self, speed: float | None) -> None:

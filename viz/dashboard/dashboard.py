@@ -1,10 +1,14 @@
 """The dearpygui dashboard: cameras with hand overlays, measured / predicted / error pressure maps,
 contact lamps, running metrics, latency per stage, device status, and the session's controls.
 
-The render loop runs on the calling thread and never waits for devices or the engine: each frame it
-reads the session's latest state and rebuilds an image only when its content changed (cameras on a new
-snapshot, maps on a new prediction); plots are refreshed at most 5 and tables 10 times a second.
-Callbacks run on the same thread (manual callback management), between frames.
+The render loop runs on the calling thread and never waits for devices or the engine: it polls the
+session's latest state at the display rate and rebuilds an image only when its content changed (cameras
+on a new snapshot, maps on a new prediction; plots are refreshed at most 5 and tables 10 times a second).
+A frame is rendered only when something on screen changed or the user is acting (for INPUT_HOLD_S after
+any mouse or key event or control callback), at most MAX_FPS times a second; otherwise only every
+IDLE_PERIOD_S, which is when dearpygui looks at the mouse and keyboard. So a paused replay leaves the CPU
+to the engine and to other programs (docs/bench/dashboard.md measures it). Callbacks run on the same
+thread (manual callback management), between frames.
 """
 from __future__ import annotations
 
@@ -18,10 +22,11 @@ import matplotlib
 import numpy as np
 
 from touchanything.devices.errors import UserError
+from touchanything.devices.rate_meter import RateMeter
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.viz.contact import hand_contact
-from touchanything.viz.dashboard.dashboard_controls import build_controls, build_tables, update_tables
+from touchanything.viz.dashboard.dashboard_controls import Tables, build_controls, build_tables
 from touchanything.viz.dashboard.dashboard_drawn import ContactLamps, HistoryPlots
 from touchanything.viz.dashboard.dashboard_panels import blank, camera_panel, pressure_views
 from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState
@@ -43,10 +48,19 @@ WINDOW_COLOUR = (37, 37, 38)
 under software OpenGL a blended full-screen quad costs about half of an otherwise empty frame."""
 REFRESH_PERIODS_S = {"plots": 0.2, "tables": 0.1}
 """The plots and the text tables are refreshed at most this often (every frame would only cost CPU)."""
+MAX_FPS = 60
+"""Frames are rendered at most this often (about a display's refresh rate; content changes at 30 Hz)."""
+IDLE_PERIOD_S = 0.2
+"""With nothing changing, a frame is still rendered this often: dearpygui reads input only while rendering."""
+INPUT_HOLD_S = 1.0
+"""After the last input event or control callback, frames are rendered at MAX_FPS for this long (drags,
+hover highlights, typing)."""
 FONT_SIZE = 13
-HAND_LABEL_SPACING = 21 * CELL + MAP_GAP - round(len("left hand") * 0.517 * FONT_SIZE)
-"""Puts "right hand" under the right map. The font is monospaced; dearpygui scales it so that ascent −
-descent is FONT_SIZE pixels, and DejaVu Sans Mono advances 0.517 of that per character."""
+CHAR_WIDTH = 0.517 * FONT_SIZE
+"""The font is monospaced; dearpygui scales it so that ascent − descent is FONT_SIZE pixels, and DejaVu Sans
+Mono advances 0.517 of that per character."""
+HAND_LABEL_SPACING = 21 * CELL + MAP_GAP - round(len("left hand") * CHAR_WIDTH)
+"""Puts "right hand" under the right map."""
 
 
 @dataclass(frozen=True)
@@ -64,6 +78,8 @@ class DashboardStats:
 
     frames: int = 0
     seconds: float = 0.0
+    rate: RateMeter = field(default_factory=RateMeter)
+    """Frames rendered per second recently."""
     camera_lag_ms: list[float] = field(default_factory=list)
     prediction_lag_ms: list[float] = field(default_factory=list)
 
@@ -89,6 +105,8 @@ class Dashboard:
         """Where each image panel is on screen: name → (x, y, width, height) in viewport pixels."""
         self._shown: dict[str, object] = {}
         self._due = dict.fromkeys(REFRESH_PERIODS_S, 0.0)
+        self._tables = Tables()
+        self._input_until = 0.0
 
     def run(self, max_frames: int | None = None, screenshot: Path | None = None) -> DashboardStats:
         """Render until the window closes or `max_frames` frames; with `screenshot`, the content stops
@@ -152,19 +170,35 @@ class Dashboard:
                 with dpg.group():
                     build_controls(self)
                     self.lamps = ContactLamps(*CONTACT)
-                    build_tables()
+                    build_tables(CHAR_WIDTH)
+        with dpg.handler_registry():
+            for add_handler in (dpg.add_mouse_move_handler, dpg.add_mouse_down_handler, dpg.add_mouse_wheel_handler,
+                                dpg.add_key_down_handler):
+                add_handler(callback=_noted)
 
     def _loop(self, max_frames: int | None, screenshot: Path | None) -> None:
-        start = time.perf_counter()
+        start = last_frame = time.perf_counter()
+        changed = True
         while dpg.is_dearpygui_running() and not self._closing:
-            dpg.run_callbacks(dpg.get_callback_queue())
+            callbacks = dpg.get_callback_queue()
+            if callbacks:
+                self._input_until = time.perf_counter() + INPUT_HOLD_S
+                dpg.run_callbacks(callbacks)
             finishing = max_frames is not None and self.stats.frames >= max_frames
             if not finishing:
-                self._update(self.session.state())
+                changed |= self._update(self.session.state())
+            now = time.perf_counter()
+            if not (changed or now < self._input_until or self.pending_screenshot or now >= last_frame + IDLE_PERIOD_S
+                    or not self.panel_rects):
+                time.sleep(1 / MAX_FPS)
+                continue
+            time.sleep(max(0.0, last_frame + 1 / MAX_FPS - now))
+            last_frame, changed = time.perf_counter(), False
             dpg.render_dearpygui_frame()
             if not self.panel_rects:
                 self._find_panels()
             self.stats.frames += 1
+            self.stats.rate.tick()
             self.stats.seconds = time.perf_counter() - start
             if max_frames is not None and self.stats.frames >= max_frames:
                 if screenshot is None or screenshot in self.saved_screenshots:
@@ -199,19 +233,22 @@ class Dashboard:
         self._shown[key] = value
         return True
 
-    def _update(self, state: SessionState) -> None:
+    def _update(self, state: SessionState) -> bool:
+        """Bring what is shown up to `state`; True when anything on screen changed."""
         now_us = time.monotonic_ns() / 1000
         views = self.session.views
         prediction = state.prediction
         pressure = None if prediction is None else prediction.pressure
-        if self._changed("snapshot", state.snapshot) | self._changed("views", views):
+        new_snapshot = self._changed("snapshot", state.snapshot) | self._changed("views", views)
+        if new_snapshot:
             for view in VIEW_NAMES:
                 self.cameras[view].show(camera_panel(state.snapshot, view, view in views, *CAMERA_TEXTURE, pressure))
             if state.snapshot is not None:
                 self.stats.camera_lag_ms.append((now_us - state.snapshot.t_us) / 1e3)
         settings = (self.session.threshold, self.outline, state.truth is None)
         new_prediction = self._changed("prediction", prediction)
-        if new_prediction | self._changed("settings", settings):
+        new_maps = new_prediction | self._changed("settings", settings)
+        if new_maps:
             for name, (image, title) in pressure_views(state, CELL, self.session.threshold, self.outline).items():
                 self.maps[name].show(blank(*MAPS, "n/a") if image is None else image)
                 dpg.set_value(f"title_{name}", title)
@@ -219,10 +256,13 @@ class Dashboard:
             self.lamps.update(hand_contact(pressure, self.bend, threshold), hand_contact(state.truth, self.bend, threshold))
         if new_prediction and prediction is not None:
             self.stats.prediction_lag_ms.append((now_us - prediction.t_us) / 1e3)
-        if self._refresh_due("plots"):
+        changed = new_snapshot | new_maps
+        if self._refresh_due("plots") and self._changed("history", tuple(v.tobytes() for v in state.history.values())):
             self.plots.update(state.history)
+            changed = True
         if self._refresh_due("tables"):
-            update_tables(state, self.note, self.stats.fps)
+            changed |= self._tables.update(state, self.note, self.stats.rate.rate())
+        return changed
 
     def _refresh_due(self, name: str) -> bool:
         """Whether `name` is due for a refresh (then the next one is scheduled)."""
@@ -254,4 +294,8 @@ class Dashboard:
             self.note = f"screenshot not saved: {path}: {exc}"
             return
         self.saved_screenshots.append(path)
-        self.note = f"screenshot saved: {path}"
+        self.note = f"screenshot saved: {path.name}\nin {path.parent}"  # a long path wraps, never the name
+
+
+def _noted(*_: object) -> None:
+    """An input handler's callback: its arrival in the callback queue is what keeps frames coming."""

@@ -23,8 +23,9 @@ STAGES = ((POSE_STAGE, "pose"), ("preprocess", "preprocess"), ("encode", "encode
           ("total", "total"))
 """(stage, column title): the hand-pose estimator (camera poses only) and the engine's stages."""
 DEVICE_ROWS = 10
-DEVICE_COLUMNS = (("source", 1.1), ("state", 2.2), ("rate", 0.7), ("age", 0.7), ("drops", 0.6))
-"""Device table columns and their relative widths."""
+DEVICE_COLUMNS = (("source", 12), ("state", 30), ("rate", 6), ("age", 8), ("drops", 5))
+"""Device table columns and their widths in characters: a longer text is cut with "…" (the state's full
+text is in its tooltip), so that no text runs into the next column."""
 
 
 class ControlledDashboard(Protocol):
@@ -50,8 +51,10 @@ def build_controls(dash: ControlledDashboard) -> None:
             dpg.add_text("speed")
             dpg.add_combo(SPEEDS, default_value="1", width=70, tag="speed",
                           callback=lambda s, value: session.set_speed(float(value)))
-        dpg.add_slider_int(tag="seek", label="frame", min_value=0, max_value=1, width=400,
-                           callback=lambda s, value: session.seek(int(value)))
+        with dpg.group(horizontal=True):
+            dpg.add_slider_int(tag="seek", format="", min_value=0, max_value=1, width=330,
+                               callback=lambda s, value: session.seek(int(value)))
+            dpg.add_text("", tag="frame_text")
     with dpg.group(horizontal=True):
         dpg.add_text("views")
         for view in VIEW_NAMES:
@@ -68,8 +71,7 @@ def build_controls(dash: ControlledDashboard) -> None:
                              callback=lambda s, value: _set_threshold(dash, value))
         dpg.add_checkbox(label="outline measured", callback=lambda s, value: setattr(dash, "outline", value))
     with dpg.group(horizontal=True):
-        dpg.add_button(label="Record", tag="record_button", width=110, enabled=session.can_record,
-                       callback=lambda: session.toggle_recording())
+        dpg.add_button(label="Record", tag="record_button", width=110, callback=lambda: session.toggle_recording())
         dpg.add_button(label="Screenshot", width=110, callback=lambda: dash.request_screenshot())
         dpg.add_text("", tag="recording_text")
 
@@ -97,7 +99,8 @@ def _set_threshold(dash: ControlledDashboard, value: float) -> None:
         dash.note = str(exc)
 
 
-def build_tables() -> None:
+def build_tables(char_width: float) -> None:
+    """The metric, stage and device tables; `char_width`: the monospaced font's advance in pixels."""
     with dpg.table(header_row=True, tag="metrics_table", borders_innerH=True):
         for title in ("official metric", "rolling 3 s", "cumulative"):
             dpg.add_table_column(label=title)
@@ -115,9 +118,9 @@ def build_tables() -> None:
             dpg.add_text("mean of 30")
             for stage, _ in STAGES:
                 dpg.add_text("-", tag=f"stage_{stage}")
-    with dpg.table(header_row=True, tag="device_table", policy=dpg.mvTable_SizingStretchProp):
-        for title, weight in DEVICE_COLUMNS:
-            dpg.add_table_column(label=title, init_width_or_weight=weight)
+    with dpg.table(header_row=True, tag="device_table", policy=dpg.mvTable_SizingFixedFit):
+        for title, chars in DEVICE_COLUMNS:
+            dpg.add_table_column(label=title, init_width_or_weight=round(chars * char_width), width_fixed=True)
         for row in range(DEVICE_ROWS):
             with dpg.table_row(tag=f"device_row_{row}"):
                 for column in range(len(DEVICE_COLUMNS)):
@@ -126,34 +129,65 @@ def build_tables() -> None:
                 dpg.add_text("", tag=f"device_{row}_full", wrap=500)
 
 
-def update_tables(state: SessionState, note: str, display_fps: float) -> None:
-    """Refresh the texts and tables from `state`; `note` (the dashboard's own notice) wins over the session's."""
-    dpg.set_value("model_text", f"model: {state.model}")
-    dpg.set_value("pose_text", pose_label(state.snapshot))
-    dpg.set_value("message_text", note or state.message)
-    dpg.configure_item("record_button", label="Stop recording" if state.recording else "Record")
-    dpg.set_value("recording_text", state.recording or "")
+class Tables:
+    """The texts and tables, refreshed from each SessionState; an item is touched only when its content
+    changes, so `update` tells whether anything on screen did."""
+
+    def __init__(self) -> None:
+        self._shown: dict[tuple[str, str], object] = {}
+
+    def _put(self, tag: str, key: str, value: object) -> bool:
+        """Set `key` ("value" or a configuration option) of item `tag` unless it already holds `value`."""
+        if self._shown.get((tag, key), ...) == value:
+            return False
+        self._shown[(tag, key)] = value
+        if key == "value":
+            dpg.set_value(tag, value)
+        else:
+            dpg.configure_item(tag, **{key: value})
+        return True
+
+    def update(self, state: SessionState, note: str, display_fps: float) -> bool:
+        """Refresh from `state`; `note` (the dashboard's own notice) wins over the session's. True when
+        anything shown changed."""
+        texts = {("model_text", "value"): f"model: {state.model}", ("pose_text", "value"): pose_label(state.snapshot),
+                 ("message_text", "value"): note or state.message,
+                 ("record_button", "label"): "Stop recording" if state.recording else "Record",
+                 ("recording_text", "value"): state.recording or "",
+                 ("transport", "show"): state.playback is not None,
+                 ("performance_text", "value"): _performance_line(state, display_fps)}
+        playback = state.playback
+        if playback is not None:
+            texts[("play_button", "label")] = "Play" if playback.paused else "Pause"
+            texts[("seek", "max_value")] = max(playback.frames - 1, 1)
+            shown = _shown_frame(state)
+            texts[("frame_text", "value")] = f"frame {shown} of {playback.frames}"
+            if not dpg.is_item_active("seek"):
+                texts[("seek", "value")] = shown
+        for key, _ in METRIC_ROWS:
+            texts[(f"rolling_{key}", "value")] = _metric(state.rolling, key)
+            texts[(f"cumulative_{key}", "value")] = _metric(state.cumulative, key)
+        for stage, _ in STAGES:
+            value = state.stage_ms.get(stage)
+            texts[(f"stage_{stage}", "value")] = ("-" if stage == POSE_STAGE else "skipped") if value is None else f"{value:.1f}"
+        rows = state.sources[:DEVICE_ROWS]
+        for row in range(DEVICE_ROWS):
+            texts[(f"device_row_{row}", "show")] = row < len(rows)
+            if row < len(rows):
+                for column, text in enumerate(_device_cells(rows[row])):
+                    texts[(f"device_{row}_{column}", "value")] = text
+                texts[(f"device_{row}_full", "value")] = rows[row].detail or \
+                    ("no details" if rows[row].in_scene else "the scene has no such source")
+        changed = [self._put(tag, key, value) for (tag, key), value in texts.items()]
+        return any(changed)
+
+
+def _shown_frame(state: SessionState) -> int:
+    """The frame on screen (the slider shows it, not the next one to play): the snapshot's, or before the
+    first one, the playback position."""
     playback = state.playback
-    dpg.configure_item("transport", show=playback is not None)
-    if playback is not None:
-        dpg.configure_item("play_button", label="Play" if playback.paused else "Pause")
-        dpg.configure_item("seek", max_value=max(playback.frames - 1, 1))
-        if not dpg.is_item_active("seek"):
-            dpg.set_value("seek", min(playback.position, playback.frames - 1))
-    for key, _ in METRIC_ROWS:
-        dpg.set_value(f"rolling_{key}", _metric(state.rolling, key))
-        dpg.set_value(f"cumulative_{key}", _metric(state.cumulative, key))
-    for stage, _ in STAGES:
-        value = state.stage_ms.get(stage)
-        dpg.set_value(f"stage_{stage}", ("-" if stage == POSE_STAGE else "skipped") if value is None else f"{value:.1f}")
-    dpg.set_value("performance_text", _performance_line(state, display_fps))
-    rows = state.sources[:DEVICE_ROWS]
-    for row in range(DEVICE_ROWS):
-        dpg.configure_item(f"device_row_{row}", show=row < len(rows))
-        if row < len(rows):
-            for column, text in enumerate(_device_cells(rows[row])):
-                dpg.set_value(f"device_{row}_{column}", text)
-            dpg.set_value(f"device_{row}_full", rows[row].detail or "no details")
+    frame = state.snapshot.frame_index if state.snapshot is not None else playback.position
+    return min(frame, playback.frames - 1)
 
 
 def _metric(values: dict[str, float] | None, key: str) -> str:
@@ -169,8 +203,13 @@ def _performance_line(state: SessionState, display_fps: float) -> str:
     return text
 
 
-def _device_cells(status: SourceStatus) -> tuple[str, str, str, str, str]:
+def _device_cells(status: SourceStatus) -> tuple[str, ...]:
+    """The row's texts, each cut to its column's width."""
     rate = "" if status.rate_hz is None else f"{status.rate_hz:.0f} Hz"
     age = "" if status.age_ms is None else f"{status.age_ms:.0f} ms"
-    state = ("ok" if status.connected else "DOWN") + (f" - {status.detail}" if status.detail else "")
-    return status.name, state, rate, age, str(status.drops)
+    if not status.in_scene:
+        cells = (status.name, "not in this scene", "", "", "")
+    else:
+        state = ("ok" if status.connected else "DOWN") + (f" - {status.detail}" if status.detail else "")
+        cells = (status.name, state, rate, age, str(status.drops))
+    return tuple(text if len(text) <= chars else text[:chars - 1] + "…" for text, (_, chars) in zip(cells, DEVICE_COLUMNS))

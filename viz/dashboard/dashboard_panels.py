@@ -8,7 +8,7 @@ from touchanything.devices.snapshot import Snapshot
 from touchanything.viz.comparison_video import VIEW_LABELS
 from touchanything.viz.dashboard.dashboard_state import SessionState
 from touchanything.viz.hand_projection import draw_hands
-from touchanything.viz.pressure_panel import BACKGROUND, pressure_maps, put_text
+from touchanything.viz.pressure_panel import BACKGROUND, pressure_maps, put_text, unposed_as_nan
 
 
 def blank(width: int, height: int, text: str) -> np.ndarray:
@@ -41,15 +41,17 @@ def pressure_views(state: SessionState, cell: int, threshold: float,
     prediction = state.prediction
     pred = None if prediction is None else prediction.pressure
     truth = state.truth
-    measured = (pressure_maps(truth, cell), "Measured pressure") if truth is not None else \
+    measured = (pressure_maps(truth, cell, empty="no glove"), "Measured pressure") if truth is not None else \
         (None, "Measured pressure: n/a (no glove / ground truth)")
     if pred is None:
         predicted = (None, f"Predicted pressure: {'waiting for the model' if prediction is None else prediction.status}")
     else:
+        pred = unposed_as_nan(pred, prediction.hands_predicted)
         missing = [side for side, ok in zip(("left", "right"), prediction.hands_predicted) if not ok]
         title = "Predicted pressure" + (" + measured contact" if outline and truth is not None else "")
         title += f" ({' and '.join(missing)}: no pose)" if missing else ""
-        predicted = (pressure_maps(pred, cell, outline=truth if outline else None, threshold=threshold), title)
+        predicted = (pressure_maps(pred, cell, outline=truth if outline else None, threshold=threshold,
+                                   empty="no pose"), title)
     error = (pressure_maps(pred - truth, cell, error=True), "Prediction - measured") \
         if pred is not None and truth is not None else (None, "Error: n/a")
     return {"measured": measured, "predicted": predicted, "error": error}

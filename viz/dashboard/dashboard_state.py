@@ -14,7 +14,8 @@ from touchanything.inference.engine.prediction import Prediction
 @dataclass(frozen=True)
 class SourceStatus:
     """One row of the device table. rate_hz: measured sample rate; age_ms: now − capture time of the
-    latest sample (None: no sample yet); drops: samples lost or replaced before use."""
+    latest sample (None: no sample yet); drops: samples lost or replaced before use; in_scene: False for a
+    source the scene or episode does not have at all (shown as such, not as a failure)."""
 
     name: str
     connected: bool
@@ -22,6 +23,7 @@ class SourceStatus:
     age_ms: float | None = None
     drops: int = 0
     detail: str = ""
+    in_scene: bool = True
 
 
 @dataclass(frozen=True)
@@ -90,9 +92,6 @@ class DashboardSession(Protocol):
     def current_model(self) -> tuple[str, str]: ...
 
     def set_model(self, model: str, tier: str) -> None: ...
-
-    @property
-    def can_record(self) -> bool: ...
 
     def toggle_recording(self) -> None: ...
 
