@@ -110,7 +110,7 @@ def test_convert_labels_wall_and_work_time_and_unmeasured_quality(raw_root, tmp_
     assert re.fullmatch(r"converted 3, skipped 0, failed 0; 60 frames in [\d.]+ s wall time \([\d.]+ frames/s\), "
                         r"[\d.]+ s of work summed over trajectories \([\d.]+ frames/s per worker\)", report[0])
     quality = (out_root / "quality_report.txt").read_text()
-    assert "-1" not in quality
+    assert "-1.00" not in quality
     assert "1.hdf5: wilor valid 100.0%, duplicate wrist frames left not measured right not measured" in quality
     assert "2.hdf5: wilor valid 100.0%, duplicate wrist frames left 0.01 right 0.30" in quality
 

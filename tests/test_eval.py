@@ -48,8 +48,8 @@ def test_eval_writes_the_table_per_view_and_scene(sim_hdf5_root, tiny_checkpoint
     captured = capsys.readouterr()
     printed = captured.out
     total = 60 * len(split[name])
-    final = [line for line in captured.err.replace("\r", "\n").splitlines() if f"{total}/{total} frames" in line]
-    assert final and all(".0 frames" not in line for line in final)  # frames out of a total, no fractions
+    final = [line for line in captured.err.replace("\r", "\n").splitlines() if f" {total}/{total} [" in line]
+    assert final and all(" frames/s" in line for line in final)  # whole frames out of a total
     assert "| views | scene |" in printed and "causal newest-frame" in printed
     payload = json.loads((tmp_path / "out" / "results.json").read_text())
     assert [r["views"] for r in payload["results"]] == ["ego", "all"]

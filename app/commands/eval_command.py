@@ -189,7 +189,7 @@ def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: s
             bar.set_postfix(trajectories=f"{len(finished)}/{len(mine)}")
 
         return evaluate(model, files, views, args.batch_size, args.ego_path, args.precision, group,
-                        on_trajectory=done, on_frames=bar.update, blank=blank)
+                        on_trajectory=done, on_frames=lambda n: bar.update(int(n)), blank=blank)
 
 
 def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> dict:
