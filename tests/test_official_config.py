@@ -67,9 +67,9 @@ def test_project_configs_use_the_official_structure_and_round_trip(path, tmp_pat
     assert not config.unused
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(train_config_to_dict(config)))
     assert train_config_from_file(tmp_path / "config.yaml") == config
-    sections = yaml.safe_load(path.read_text())["model"]
+    sections = yaml.safe_load(path.read_text()).get("model", {})  # an overlay on a `_base_` may have none
     assert set(sections) <= {"task", "num_input_joints", "vision_encoder", "temporal_transformer", "multi_view",
-                             "pose_encoder", "fusion", "tactile_decoder"}
+                             "pose_encoder", "fusion", "tactile_decoder", "baseline"}  # baseline: the project's
 
 
 def test_bundled_model_configs_match_their_training_configs():
