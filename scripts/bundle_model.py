@@ -24,7 +24,8 @@ def held_out(results_json: Path, pose_only: bool) -> dict[str, float]:
     payload = json.loads(results_json.read_text())
     record = next(r for r in payload["results"] if r["views"] == "all" and not r["baseline"]
                   and (r["pose_only"] or model_is_blank(payload)) == pose_only)
-    return {key: float(record["causal"][key]) for key in CARD_METRICS if key in record["causal"]}
+    overall = record["causal"]["overall"]
+    return {key: float(overall[key]) for key in CARD_METRICS if key in overall}
 
 
 def model_is_blank(payload: dict) -> bool:
