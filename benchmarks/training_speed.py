@@ -49,7 +49,10 @@ def timed_steps(config: TrainConfig, dataset: ClipDataset, steps: int, warmup: i
     batches, totals, clips = iter(loader), dict.fromkeys(PARTS, 0.0), 0
     for step in range(warmup + steps):
         marks = [time.perf_counter()]
-        batch = next(batches)
+        batch = next(batches, None)
+        if batch is None:  # fewer clips than steps: another pass over the trajectories
+            batches = iter(loader)
+            batch = next(batches)
         marks.append(time.perf_counter())
         pred = model(poses=batch["poses"], views=batch["views"])["tactile"]
         marks.append(time.perf_counter())
