@@ -163,6 +163,8 @@ def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4)
             result.quality = _quality(episode, result.problems)
             with replacing(Path(out_path)) as partial, h5py.File(partial, "w") as file:
                 frames = _write_images(file, episode, compression_level)
+                if frames == 0:  # a trajectory of no frame is not one (its readers refuse it)
+                    raise DataError(folder, None, "cannot convert: the videos decode no frame")
                 if frames < episode.num_frames:
                     result.problems.append(f"{folder}: videos decode only {frames} of {episode.num_frames} frames; cut to {frames}")
                 _write_streams(file, episode, frames, compression_level)
