@@ -110,9 +110,9 @@ def test_checkpoint_for_another_preset_is_named(tiny_model, tmp_path):
     with pytest.raises(UserError, match="another preset"):
         load_model(tmp_path / "tiny" / "m.pth", tmp_path / "small" / "config.yaml")
     state = torch.load(tmp_path / "tiny" / "m.pth", weights_only=True)
-    del state["model_state_dict"]["decoder.head.0.bias"]
+    del state["model_state_dict"]["decoder.joint_proj.0.bias"]
     torch.save(state, tmp_path / "tiny" / "broken.pth")
-    with pytest.raises(UserError, match="missing 1 key.*decoder.head.0.bias"):
+    with pytest.raises(UserError, match="missing 1 key.*decoder.joint_proj.0.bias"):
         load_model(tmp_path / "tiny" / "broken.pth")
 
 

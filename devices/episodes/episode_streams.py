@@ -188,11 +188,16 @@ def read_glove(path: Path) -> tuple[GloveStream, list[str]]:
 
 def glove_row(frame_index: int, timestamp_us: int, raw: np.ndarray, present: np.ndarray,
               quat_wxyz: np.ndarray) -> dict:
-    """One line of `jq_pressure.json` from (2, 256) uint8 raw, (2,) presence and (2, 4) quaternions."""
+    """One line of `jq_pressure.json` from (2, 256) uint8 raw, (2,) presence and (2, 4) quaternions. A
+    quaternion the glove did not send (NaN, or all zeros) is left out of the line: the sample's pressure is
+    kept, and a reader takes the missing orientation as the identity."""
     row: dict = {"frame_index": int(frame_index), "timestamp_us": int(timestamp_us)}
     for h, hand in enumerate(HANDS):
-        row[hand] = (
-            {"raw": np.asarray(raw[h], np.uint8).tolist(), "quat_wxyz": np.asarray(quat_wxyz[h], np.float32).tolist()}
-            if present[h] else None
-        )
+        if not present[h]:
+            row[hand] = None
+            continue
+        row[hand] = {"raw": np.asarray(raw[h], np.uint8).tolist()}
+        quat = np.asarray(quat_wxyz[h], np.float32)
+        if np.all(np.isfinite(quat)) and np.linalg.norm(quat) >= 1e-6:
+            row[hand]["quat_wxyz"] = quat.tolist()
     return row
