@@ -88,6 +88,7 @@ class RerunRecording:
         self._stream = rr.RecordingStream(APPLICATION, send_properties=True, batcher_config=batching)
         sinks = []
         if target.rrd is not None:
+            target.rrd.parent.mkdir(parents=True, exist_ok=True)  # the output check creates nothing
             sinks.append(rr.FileSink(temporary_path(target.rrd)))
         if target.serve_port is not None:
             server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=target.grpc_port, server_memory_limit="512MiB")
