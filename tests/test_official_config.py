@@ -149,7 +149,7 @@ def test_yaml_exponents_without_a_dot_are_numbers(tmp_path):
 def test_effective_settings_name_what_the_run_uses():
     config = TrainConfig(model=PRESETS["nano"], unused=("training.num_workers",))
     text = "\n".join(describe_settings(config))
-    for part in ("vit_n14 at 112 px", "100 epochs", "lr 5e-05", "betas (0.9, 0.999)", "10 warm-up epochs",
+    for part in ("conv_n16 at 96 px", "100 epochs", "lr 5e-05", "betas (0.9, 0.999)", "10 warm-up epochs",
                  "cosine to 1e-06", "seed 42", "fp32", "×3 above 0.1", "not used by this trainer: training.num_workers"):
         assert part in text, part
     changed = replace(config, training=replace(config.training, num_epochs=7))

@@ -204,7 +204,7 @@ def test_num_workers_is_read_validated_and_shown(tmp_path):
 def test_nan_guard_names_the_step_and_episode(data, tmp_path):
     trainer = Trainer(config(), data, tmp_path / "nan", log=lambda _: None)
     with torch.no_grad():
-        trainer.model.decoder.head[0].bias.fill_(float("nan"))  # the injected NaN
+        trainer.model.decoder.joint_proj[0].bias.fill_(float("nan"))  # the injected NaN
     with pytest.raises(TrainingError) as err:
         trainer.fit()
     message = str(err.value)
@@ -215,7 +215,7 @@ def test_nan_guard_names_the_step_and_episode(data, tmp_path):
 
 
 def test_frozen_backbone_features_are_cached_after_the_first_epoch(data, tmp_path):
-    trainer = Trainer(config(model=with_backbone(TINY, freeze=True)), data, tmp_path / "frozen", log=lambda _: None)
+    trainer = Trainer(config(model=with_backbone(PRESETS["nano_vit"], freeze=True)), data, tmp_path / "frozen", log=lambda _: None)
     trainer.fit()
     def cached_keys(dataset) -> int:
         return sum(len(clip_starts(len(e.poses), 15)) * 8 * len(e.views) for e in dataset.episodes)
