@@ -18,6 +18,7 @@ import pytest
 from touchanything.app.cli import main
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import PARTIAL, check_output, replacing, replacing_folder, write_text
+from touchanything.inference.training.frame_cache import CACHE_DIR
 from touchanything.viz.comparison_video import is_comparison_video, write_comparison_video
 
 REPO = Path(__file__).resolve().parents[1]
@@ -205,8 +206,11 @@ def writing_commands(i: dict[str, Path]) -> list[tuple[list[str], list[Path], li
 
 
 def targets(paths: list[Path]) -> list[Path]:
-    """Each input, and each file inside an input folder."""
-    return [t for p in paths for t in ([p] if p.is_file() else [p, *sorted(f for f in p.rglob("*") if f.is_file())])]
+    """Each input, and each file inside an input folder that is the user's (not the training frame cache the
+    project writes beside a dataset, which earlier tests may have left in a shared fixture)."""
+    def users(f: Path) -> bool:
+        return f.is_file() and CACHE_DIR not in f.parts
+    return [t for p in paths for t in ([p] if p.is_file() else [p, *sorted(f for f in p.rglob("*") if users(f))])]
 
 
 def test_no_command_changes_an_input_when_its_output_points_at_it(inputs, capsys):

@@ -154,7 +154,8 @@ def test_serving_the_recording_to_the_web_viewer(episode_dir, tmp_path):
     port = _free_port()
     command = [sys.executable, "-m", "touchanything.app.cli", "replay", str(episode_dir), "--out", str(tmp_path / "v.mp4"),
                "--rerun-serve", str(port), "--rerun", str(tmp_path / "s.rrd")]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    headless = {k: v for k, v in os.environ.items() if k != "DISPLAY"}  # as a fresh shell, whatever earlier tests set
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=headless)
     try:
         lines = []
         deadline = time.monotonic() + 300
