@@ -132,14 +132,21 @@ def replacing(path: Path) -> Iterator[Path]:
     OSError (no space, file too large, read-only…) is raised as a UserError naming `path`."""
     path = Path(path)
     temporary = temporary_path(path)
-    try:
+    with _removed_on_failure(temporary, path):
         path.parent.mkdir(parents=True, exist_ok=True)
         yield temporary
         os.replace(temporary, path)
+
+
+@contextlib.contextmanager
+def _removed_on_failure(temporary: Path, target: Path) -> Iterator[None]:
+    """On any exception `temporary` is removed; an OSError is raised as one UserError naming `target`."""
+    try:
+        yield
     except BaseException as exc:
         _remove(temporary)
         if isinstance(exc, OSError):
-            raise UserError(f"{path}: not written ({describe(exc)})") from None
+            raise UserError(f"{target}: not written ({describe(exc)})") from None
         raise
 
 
@@ -157,7 +164,7 @@ def replacing_folder(out: Path, overwrite: bool = False) -> Iterator[Path]:
     out = Path(out)
     temporary = temporary_path(out)
     _remove(temporary)
-    try:
+    with _removed_on_failure(temporary, out):
         temporary.mkdir(parents=True)
         yield temporary
         if out.exists():
@@ -169,8 +176,3 @@ def replacing_folder(out: Path, overwrite: bool = False) -> Iterator[Path]:
             _remove(old)
         else:
             os.replace(temporary, out)
-    except BaseException as exc:
-        _remove(temporary)
-        if isinstance(exc, OSError):
-            raise UserError(f"{out}: not written ({describe(exc)})") from None
-        raise
