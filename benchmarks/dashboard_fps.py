@@ -3,6 +3,7 @@ the engine and the dashboard, and the simulated live rig (scenes/sim.toml: its s
 cores), one fresh process per run (dearpygui allows one dashboard per process).
 
     python benchmarks/dashboard_fps.py [--frames 200] [--rounds 3] [--out docs/bench] [--before FILE] [--cpu-only]
+        [--checkpoint CKPT]
 
 The CPU rows replay the sample with the nano model and measure, over a fixed window: the dashboard
 process's CPU (all its threads: display, llvmpipe, player, engine) and the X server's, paused and
@@ -63,8 +64,8 @@ def measure(tier: str | None, frames: int) -> dict:
             "engine_fps": engine_fps}
 
 
-def measure_cpu(setting: str, x_server: int | None) -> dict:
-    """One CPU row: the sample with the nano model in the dashboard, driven from a thread (paused, or
+def measure_cpu(setting: str, x_server: int | None, checkpoint: Path | None) -> dict:
+    """One CPU row: the sample with `checkpoint` (None: the default nano) in the dashboard, driven from a thread (paused, or
     playing from frame 0) and measured over WINDOW_S once the first prediction is on screen."""
     import threading
 
@@ -75,7 +76,7 @@ def measure_cpu(setting: str, x_server: int | None) -> dict:
     from touchanything.devices.snapshot import VIEW_NAMES
     from touchanything.viz.dashboard.dashboard import Dashboard
 
-    choice = ModelChoice(default_checkpoint())
+    choice = ModelChoice(checkpoint or default_checkpoint())
     result: dict = {}
     with open_episode(sample_episodes()[0]) as episode:
         session = ReplaySession(episode, build_engine(choice, VIEW_NAMES), choice).start()
@@ -213,6 +214,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("docs/bench"))
     parser.add_argument("--before", type=Path, help="an earlier dashboard.json whose CPU rows are shown beside these")
     parser.add_argument("--cpu-only", action="store_true", help="only the CPU rows (quicker)")
+    parser.add_argument("--checkpoint", type=Path, help="the model of the CPU rows (default: the bundled nano)")
     args = parser.parse_args()
     before = json.loads(args.before.read_text())["rows"] if args.before else []
     server = ensure_display()
@@ -233,7 +235,7 @@ def main() -> None:
                     competitor.start()
                 try:
                     with context.Pool(1) as pool:
-                        result = pool.apply(measure_cpu, (name, server and server.pid))
+                        result = pool.apply(measure_cpu, (name, server and server.pid, args.checkpoint))
                 finally:
                     if competitor is not None:
                         competitor.terminate()
