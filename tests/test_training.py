@@ -29,6 +29,7 @@ from touchanything.inference.training.train_config import (
     SystemConfig,
     TrainConfig,
     TrainingConfig,
+    TrainingDataConfig,
     describe_settings,
     train_config_from_file,
 )
@@ -136,6 +137,20 @@ def test_loss_decreases_on_a_fixed_tiny_set(data, tmp_path):
     trainer = Trainer(config(epochs=12, warmup_epochs=0, lr=2e-3), data, tmp_path / "fit", log=lambda _: None)
     result = trainer.fit()
     assert result.train_loss[-1] < 0.7 * result.train_loss[0]
+
+
+def test_colour_augmentation_changes_training_but_not_a_pose_only_run(data, tmp_path):
+    """The trainer applies `data.colour_augmentation` to the frames (same seed, different losses) and leaves
+    black frames alone (a pose-only run trains identically with it)."""
+    import dataclasses
+
+    def losses(model, strength: float, name: str) -> list[float]:
+        run = dataclasses.replace(config(model=model, epochs=1), data=TrainingDataConfig(colour_augmentation=strength))
+        return Trainer(run, data, tmp_path / name, log=lambda _: None).fit().train_loss
+
+    assert losses(TINY, 1.0, "a") != losses(TINY, 0.0, "b")
+    blank = dataclasses.replace(TINY, blank_images=True)
+    assert losses(blank, 1.0, "c") == losses(blank, 0.0, "d")
 
 
 def test_view_dropout_proportions_over_many_steps():

@@ -6,8 +6,9 @@ official names: `training.{batch_size, num_epochs, save_interval, val_interval, 
 min_lr}`, `training.loss.{mse_weight, l1_weight, tv_weight, contact_weight, pressure_threshold}`,
 `system.{seed, mixed_precision}`, `data.{pose_source, fallback_pose_source}`. Defaults are the official
 recipe (`touchanything_with_glove_aug_wilor.yaml`). Official keys that do not change this trainer are
-accepted and listed by `TrainConfig.unused` (the `train` command prints them). One project extension, not in
-the official structure: `data.blank_images` (default false), which trains the pose-only baseline.
+accepted and listed by `TrainConfig.unused` (the `train` command prints them). Two project extensions, not in
+the official structure: `data.blank_images` (default false), which trains the pose-only baseline, and
+`data.colour_augmentation` (default 0: none; `colour_augmentation.py`).
 """
 from __future__ import annotations
 
@@ -83,6 +84,7 @@ class TrainingDataConfig:
     ELSEWHERE: ClassVar = ("image_size", "blank_images", *ModelInputConfig.FIXED)
     pose_source: str = "wilor"
     fallback_pose_source: str | None = None
+    colour_augmentation: float = field(default=0.0, metadata=limits(0.0, 1.0))
 
 
 @dataclass(frozen=True)
@@ -98,12 +100,16 @@ class TrainConfig:
     def check(self, source: str = "config") -> TrainConfig:
         self.model.check(source)
         check_section(self.training, "training", source)
+        check_section(self.data, "data", source)
         warmup, epochs = self.training.scheduler.warmup_epochs, self.training.num_epochs
         if warmup > epochs:
             raise UserError(describe(source, "training.scheduler.warmup_epochs", f"{warmup} exceeds num_epochs {epochs}"))
         primary, fallback = self.data.pose_source, self.data.fallback_pose_source
         if primary not in POSE_SOURCES:
             raise UserError(describe(source, "data.pose_source", f"must be wilor or rokoko, got {primary!r}"))
+        if self.data.colour_augmentation and self.model.vision_encoder.freeze:
+            raise UserError(describe(source, "data.colour_augmentation",
+                                     "needs a trained backbone: a frozen one's features are cached unaugmented"))
         if fallback not in (None, *POSE_SOURCES) or fallback == primary:
             raise UserError(describe(source, "data.fallback_pose_source",
                                      f"must be null or the other pose source, got {fallback!r}"))
@@ -171,7 +177,8 @@ def describe_settings(config: TrainConfig) -> list[str]:
         f"loss: mse {loss.mse_weight:g} + l1 {loss.l1_weight:g} (×{loss.contact_weight:g} above {loss.pressure_threshold:g}) "
         f"+ tv {loss.tv_weight:g}; clips of {CLIP_LENGTH} frames at interval {FRAME_INTERVAL}; poses {config.data.pose_source}"
         f"{' falling back to ' + config.data.fallback_pose_source if config.data.fallback_pose_source else ''}"
-        f"{'; images blanked (pose-only baseline)' if config.model.blank_images else ''}; "
+        f"{'; images blanked (pose-only baseline)' if config.model.blank_images else ''}"
+        f"{f'; colour augmentation {config.data.colour_augmentation:g}' if config.data.colour_augmentation else ''}; "
         f"validation every {t.val_interval} epoch(s), a checkpoint every {t.save_interval}",
     ]
     if config.unused:

@@ -27,6 +27,7 @@ from touchanything.inference.model.checkpoint import build_model, load_state, mo
 from touchanything.inference.model.model_config import SPAN
 from touchanything.inference.model.torch_device import join_process_group, resolve_device
 from touchanything.inference.training.clip_dataset import ClipDataset, clip_loader
+from touchanything.inference.training.colour_augmentation import augment_views
 from touchanything.inference.training.feature_cache import FeatureCache
 from touchanything.inference.training.frame_cache import FrameCache
 from touchanything.inference.training.tactile_loss import tactile_loss
@@ -167,6 +168,8 @@ class Trainer:
                 tokens = cache.tokens(self.model.vision_encoder, batch["views"], batch["episode"], batch["frames"], self.device)
                 return self.net(poses=poses, tokens=tokens)["tactile"].float()
             views = {v: self._to_device(x) for v, x in batch["views"].items()}
+            if self.net.training and not self.model.config.blank_images:
+                views = augment_views(views, self.config.data.colour_augmentation)
             return self.net(poses=poses, views=views)["tactile"].float()
 
     def _episodes(self, batch: dict, dataset: ClipDataset) -> str:
