@@ -77,10 +77,29 @@ def test_tactile_and_bend_normalised_separately():
     raw = np.full((2, 2, 256), 0, np.uint8)
     for h in range(2):
         raw[1, h, LAYOUT.sensor_index[h][LAYOUT.tactile[h]]] = 200
-        raw[1, h, LAYOUT.sensor_index[h][LAYOUT.bend[h]]] = 50
+        raw[1, h, LAYOUT.sensor_index[h][LAYOUT.bend[h]]] = 70
     out = process_raw(raw, LAYOUT)
     assert np.all(out.grids[1][LAYOUT.tactile] == 1.0) and np.all(out.grids[1][LAYOUT.bend] == 1.0)
-    assert np.all(out.tactile_max == 200) and np.all(out.bend_max == 50)
+    assert np.all(out.tactile_max == 200) and np.all(out.bend_max == 70)
+
+
+def test_an_untouched_glove_never_reads_as_contact():
+    """The simulator's gloves (bias, gain, noise) with zero pressure, through the default pipeline: no frame of
+    any of 12 gloves meets the official contact rule (at the old divisor of 25 most frames did)."""
+    from touchanything.devices.sim.touch import Glove
+    from touchanything.inference.evaluation.metrics import contact_frames
+
+    rates = {}
+    for scale in (25.0, TactileConfig.min_scale):
+        flags = []
+        for seed in range(12):
+            rng = np.random.default_rng(seed)
+            glove = Glove.draw(rng, None)
+            raw = np.stack([glove.raw(np.zeros((2, 21, 21)), LAYOUT, rng) for _ in range(150)])
+            grids = process_raw(raw, LAYOUT, TactileConfig(min_scale=scale)).grids
+            flags += [contact_frames(grids[:, h], LAYOUT.bend[h]) for h in range(2)]
+        rates[scale] = float(np.mean(flags))
+    assert rates[TactileConfig.min_scale] == 0.0 and rates[25.0] > 0.3
 
 
 def test_min_scale_keeps_noise_small():

@@ -30,7 +30,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--repair-column", type=broken_column, action="append", default=[], metavar="HAND:COLUMN",
                         help="interpolate a broken display column from its neighbours (repeatable; default: none)")
     parser.add_argument("--min-scale", type=float, default=TactileConfig.min_scale,
-                        help="smallest normalisation divisor in raw units (default 25)")
+                        help="smallest normalisation divisor in raw units (default 60: sensor noise stays below the contact threshold)")
     parser.set_defaults(run=run)
 
 
