@@ -160,6 +160,12 @@ def train_config_to_dict(config: TrainConfig) -> dict:
     return {**out, "training": section_to_dict(config.training), "system": section_to_dict(config.system)}
 
 
+def _augmentation_note(config: TrainConfig) -> str:
+    """"; colour augmentation S" when the run changes its frames' colours (never on black frames)."""
+    strength = config.data.colour_augmentation
+    return f"; colour augmentation {strength:g}" if strength and not config.model.blank_images else ""
+
+
 def describe_settings(config: TrainConfig) -> list[str]:
     """The effective settings, a few lines, printed at the start of a run."""
     m, t, o, s, loss = config.model, config.training, config.training.optimizer, config.training.scheduler, config.training.loss
@@ -178,7 +184,7 @@ def describe_settings(config: TrainConfig) -> list[str]:
         f"+ tv {loss.tv_weight:g}; clips of {CLIP_LENGTH} frames at interval {FRAME_INTERVAL}; poses {config.data.pose_source}"
         f"{' falling back to ' + config.data.fallback_pose_source if config.data.fallback_pose_source else ''}"
         f"{'; images blanked (pose-only baseline)' if config.model.blank_images else ''}"
-        f"{f'; colour augmentation {config.data.colour_augmentation:g}' if config.data.colour_augmentation else ''}; "
+        f"{_augmentation_note(config)}; "
         f"validation every {t.val_interval} epoch(s), a checkpoint every {t.save_interval}",
     ]
     if config.unused:
