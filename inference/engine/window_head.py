@@ -66,8 +66,7 @@ class WindowHead(nn.Module):
         per_hand = feats.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, c)
         if isinstance(self.decoder, MlpTactileDecoder):
             pose = self.pose_encoder.normalised(joints)
-            pooled = visual.mean(dim=1).repeat_interleave(j // JOINTS_PER_HAND, dim=0) if self.decoder.visual else None
-            hands = self.decoder.hand(per_hand, pose.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, -1), pooled)
+            hands = self.decoder.hand(per_hand, pose.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, -1))
         else:
             hands = self.decoder.hand(per_hand)
         return hands.reshape(p, j // JOINTS_PER_HAND, *hands.shape[-2:])

@@ -102,13 +102,12 @@ class FusionConfig:
     dropout: float = field(default=0.1, metadata=DROPOUT)
 
 
-DECODER_TYPES = ("joint_level", "mlp_skip", "mlp_skip_visual")
+DECODER_TYPES = ("joint_level", "mlp_skip")
 
 
 @dataclass(frozen=True)
 class TactileDecoderConfig:
-    """`type`: `joint_level` (official), or `mlp_skip` / `mlp_skip_visual` (project extensions,
-    `tactile_decoder.MlpTactileDecoder`)."""
+    """`type`: `joint_level` (official) or `mlp_skip` (a project extension, `tactile_decoder.MlpTactileDecoder`)."""
 
     FIXED: ClassVar = {"num_joints": NUM_JOINTS, "tactile_size": TACTILE_SIZE}
     type: str = "joint_level"

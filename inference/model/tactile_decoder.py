@@ -41,32 +41,26 @@ class JointLevelTactileDecoder(nn.Module):
 
 
 class MlpTactileDecoder(nn.Module):
-    """A project extension (`tactile_decoder.type: mlp_skip` or `mlp_skip_visual`) with the joint-level decoder's
-    interface: the same per-joint projection to C channels, then per hand the 21 joints' features flattened and
-    concatenated with the hand's normalised pose input (21 × `skip` features: a direct path from the pose to the
-    cells) and, for `mlp_skip_visual`, the frame's visual tokens after the temporal transformer averaged into one
-    vector (`visual` = D features: a direct path from the pixels) → Linear(21·C + 21·skip + visual, 8·C) → GELU →
-    Linear → 441 cells → sigmoid. No spatial prior and no BatchNorm."""
+    """A project extension (`tactile_decoder.type: mlp_skip`) with the joint-level decoder's interface: the same
+    per-joint projection to C channels, then per hand the 21 joints' features flattened and concatenated with
+    the hand's normalised pose input (21 × `skip` features: a direct path from the pose to the cells) →
+    Linear(21·C + 21·skip, 8·C) → GELU → Linear → 441 cells → sigmoid. No spatial prior and no BatchNorm."""
 
-    def __init__(self, width: int, channels: int, dropout: float, size: int, skip: int, visual: int = 0) -> None:
+    def __init__(self, width: int, channels: int, dropout: float, size: int, skip: int) -> None:
         super().__init__()
-        self.channels, self.size, self.skip, self.visual = channels, size, skip, visual
+        self.channels, self.size, self.skip = channels, size, skip
         self.joint_proj = nn.Sequential(nn.Linear(width, channels), nn.GELU(), nn.Dropout(dropout))
-        self.cells = nn.Sequential(nn.Linear(21 * (channels + skip) + visual, 8 * channels), nn.GELU(), nn.Dropout(dropout),
+        self.cells = nn.Sequential(nn.Linear(21 * (channels + skip), 8 * channels), nn.GELU(), nn.Dropout(dropout),
                                    nn.Linear(8 * channels, size * size), nn.Sigmoid())
 
-    def hand(self, feats: torch.Tensor, pose: torch.Tensor, visual: torch.Tensor | None = None) -> torch.Tensor:
-        """(BT, 21, C) one hand's joint features, (BT, 21, skip) its normalised pose input and, when the decoder
-        reads it, (BT, D) the frame's pooled visual tokens → (BT, 1, 21, 21)."""
-        parts = [feats.flatten(1), pose.flatten(1)] + ([visual] if self.visual else [])
-        return self.cells(torch.cat(parts, dim=1)).reshape(-1, 1, self.size, self.size)
+    def hand(self, feats: torch.Tensor, pose: torch.Tensor) -> torch.Tensor:
+        """(BT, 21, C) one hand's joint features and (BT, 21, skip) its normalised pose input → (BT, 1, 21, 21)."""
+        return self.cells(torch.cat([feats.flatten(1), pose.flatten(1)], dim=1)).reshape(-1, 1, self.size, self.size)
 
-    def forward(self, fused: torch.Tensor, pose: torch.Tensor, visual: torch.Tensor | None = None) -> torch.Tensor:
-        """(B, T, 42, D) fused joint tokens, (B, T, 42, skip) normalised poses and (B, T, D) pooled visual tokens
-        (used when the decoder reads them) → (B, T, 2, 21, 21)."""
+    def forward(self, fused: torch.Tensor, pose: torch.Tensor) -> torch.Tensor:
+        """(B, T, 42, D) fused joint tokens and (B, T, 42, skip) normalised poses → (B, T, 2, 21, 21)."""
         b, t, j, d = fused.shape
         x = self.joint_proj(fused.reshape(b * t, j, d))
         p = pose.reshape(b * t, j, -1)
-        v = None if visual is None else visual.reshape(b * t, -1)
-        out = torch.cat([self.hand(x[:, :21], p[:, :21], v), self.hand(x[:, 21:], p[:, 21:], v)], dim=1)
+        out = torch.cat([self.hand(x[:, :21], p[:, :21]), self.hand(x[:, 21:], p[:, 21:])], dim=1)
         return out.reshape(b, t, 2, *out.shape[-2:])

@@ -34,10 +34,9 @@ class TouchAnything(nn.Module):
         self.pose_encoder = TransformerPoseEncoder(width, pe.num_layers, pe.num_heads, pe.mlp_ratio, pe.dropout, NUM_JOINTS,
                                                    pe.input)
         self.fusion = CrossAttentionFusion(width, fu.num_layers, fu.num_heads, fu.mlp_ratio, fu.dropout)
-        if c.tactile_decoder.type in ("mlp_skip", "mlp_skip_visual"):
+        if c.tactile_decoder.type == "mlp_skip":
             self.decoder = MlpTactileDecoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE,
-                                             self.pose_encoder.pose_scale.numel(),
-                                             width if c.tactile_decoder.type == "mlp_skip_visual" else 0)
+                                             self.pose_encoder.pose_scale.numel())
         else:
             self.decoder = JointLevelTactileDecoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE)
 
@@ -78,8 +77,7 @@ class TouchAnything(nn.Module):
 
     def head(self, visual: torch.Tensor, poses: torch.Tensor) -> torch.Tensor:
         """Fused visual tokens (B, T, N, D) and prepared poses (B, T, 42, 3) → (B, T, 2, 21, 21)."""
-        visual = self.temporal_transformer(visual)
-        fused = self.fusion(visual, self.pose_encoder(poses))
+        fused = self.fusion(self.temporal_transformer(visual), self.pose_encoder(poses))
         if isinstance(self.decoder, MlpTactileDecoder):
-            return self.decoder(fused, self.pose_encoder.normalised(poses), visual.mean(dim=2) if self.decoder.visual else None)
+            return self.decoder(fused, self.pose_encoder.normalised(poses))
         return self.decoder(fused)
