@@ -258,7 +258,7 @@ PRESETS = {
     "paper": ModelConfig(),
     "small": _light("dinov2_vits14", 168, temporal=2, heads=8, channels=64),
     "tiny": _cpu("conv_t16", 112, temporal=2, channels=64),
-    "nano": _cpu("conv_n16", 96, temporal=1, channels=32),
+    "nano": _cpu("conv_n16", 96, temporal=1, channels=64),
     "nano_vit": with_backbone(_light("vit_n14", 112, temporal=1, heads=4, channels=32), freeze=False),
 }
 """`paper` is exactly the official architecture; `small` (ViT-S/14 at 168 px, for users with the DINOv2
