@@ -155,7 +155,10 @@ def test_serving_the_recording_to_the_web_viewer(episode_dir, tmp_path):
     command = [sys.executable, "-m", "touchanything.app.cli", "replay", str(episode_dir), "--out", str(tmp_path / "v.mp4"),
                "--rerun-serve", str(port), "--rerun", str(tmp_path / "s.rrd")]
     headless = {k: v for k, v in os.environ.items() if k != "DISPLAY"}  # as a fresh shell, whatever earlier tests set
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=headless)
+    # Ctrl-C as in a terminal, whatever SIGINT disposition or mask the test process has (the child inherits both)
+    stderr = (tmp_path / "stderr.txt").open("w")
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=stderr, text=True, env=headless,
+                               preexec_fn=_default_sigint)
     try:
         lines = []
         deadline = time.monotonic() + 300
@@ -166,12 +169,23 @@ def test_serving_the_recording_to_the_web_viewer(episode_dir, tmp_path):
         with urllib.request.urlopen(f"http://localhost:{port}/", timeout=10) as page:
             assert page.status == 200 and b"<html" in page.read(4096).lower()
         process.send_signal(signal.SIGINT)
-        assert process.wait(30) == 0
+        try:
+            assert process.wait(30) == 0
+        except subprocess.TimeoutExpired:
+            stderr.flush()
+            pytest.fail(f"replay did not stop within 30 s of SIGINT; its stderr: {(tmp_path / 'stderr.txt').read_text()[-2000:]}")
         assert "stopped serving" in process.stdout.read()
     finally:
         process.kill()
         process.wait()
+        stderr.close()
     assert len(RrdReader(tmp_path / "s.rrd").recordings()) == 1
+
+
+def _default_sigint() -> None:
+    """In the child before exec: SIGINT delivered and handled by default (Python then raises KeyboardInterrupt)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 @pytest.mark.slow
