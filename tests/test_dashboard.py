@@ -56,6 +56,7 @@ def summary(dashboard: Dashboard) -> dict:
     return {"fps": dashboard.stats.fps, "frames": dashboard.stats.frames, "rects": dashboard.panel_rects,
             "camera_lag_ms": dashboard.stats.camera_lag_ms, "prediction_lag_ms": dashboard.stats.prediction_lag_ms,
             "shown_pressure": getattr(dashboard.shown.get("prediction"), "pressure", None),
+            "shown_hands": getattr(dashboard.shown.get("prediction"), "hands_predicted", None),
             "cumulative": state.cumulative, "rolling": state.rolling, "truth": state.truth, "message": state.message,
             "model": state.model, "pressure": None if prediction is None else prediction.pressure,
             "snapshot": state.snapshot is not None, "metric_frames": state.metric_frames, "note": dashboard.note}
@@ -88,12 +89,17 @@ def test_the_dashboard_replays_the_sample_with_bounded_lag(dashboard_display, tm
     assert predicted.shape[:2] == (MAPS[1], MAPS[0]), "the maps are drawn scaled"
     hand_cells = ~np.all(np.abs(predicted - BACKGROUND) < 8, axis=-1) & ~np.all(np.abs(predicted - AXES) < 8, axis=-1)
     assert hand_cells.mean() > 0.2, "the predicted map is not drawn"
-    hands = predicted[:, :2 * 21 * CELL + MAP_GAP]  # the colour bar is always warm at its top
-    peak = np.nanmax(result["shown_pressure"])
-    if peak > 0.25:
-        assert warm_pixels(hands) >= 30, f"a cell at {peak:.2f} is not drawn warm"
-    if peak < 0.1:
-        assert warm_pixels(hands) == 0, f"warm pixels drawn though the peak is {peak:.2f}"
+    # each hand map: a predicted hand on the pressure scale, an unposed one as background reading "no pose"
+    for h, posed in enumerate(result["shown_hands"]):
+        hand = predicted[:, h * (21 * CELL + MAP_GAP):][:, :21 * CELL]
+        if not posed:
+            assert 0 < warm_pixels(hand) < 200, "an unposed hand is not labelled"
+            continue
+        peak = np.nanmax(result["shown_pressure"][h])
+        if peak > 0.25:
+            assert warm_pixels(hand) >= 30, f"a cell at {peak:.2f} is not drawn warm"
+        if peak < 0.1:
+            assert warm_pixels(hand) == 0, f"warm pixels drawn though the peak is {peak:.2f}"
     assert crop(image, rects["error"]).std() > 10 and crop(image, rects["measured"]).std() > 10
     assert result["cumulative"] is not None and 0 <= result["cumulative"]["volumetric_iou"] <= 1
 
