@@ -1,11 +1,13 @@
 """Turn `touchanything eval` results into the findings tables of docs/findings.md: every model beside the
 baselines, the two seeds' spread, what vision adds over the pose (the pose-only rows), the views, and the
-paper's Table 2 layout for the bundled model.
+paper's Table 2 layout for the bundled model, and every model on the held-out trajectories of the
+evaluation split and of the seed-13 test episodes, pooled.
 
     .venv/bin/python scripts/findings_table.py data/runs nano nano_seed7 --others nano_pose_only baseline_pose baseline_frames
 
-reads RUNS/<model>/eval_<split>/results.json (written by scripts/train_bundled_models.sh) for the splits
-test_seen and test_unseen and prints Markdown. The first model is the bundled one, the second its other seed.
+reads RUNS/<model>/eval_<split>/results.json and, for the pooled table, RUNS/<model>/eval13_<split>/results.json
+(both written by scripts/train_bundled_models.sh) for the splits test_seen and test_unseen and prints Markdown.
+The first model is the bundled one, the second its other seed.
 """
 from __future__ import annotations
 
@@ -35,6 +37,37 @@ def cell(value: float | None) -> str:
 
 def overall(results: dict, views: str, key: str) -> float:
     return results.get(views, {}).get("overall", {}).get(key, math.nan)
+
+
+def trajectories(root: Path, model: str, folder: str) -> list[dict]:
+    """The per-trajectory causal metrics of the all-views result in RUNS/<model>/<folder>/results.json ([] when absent)."""
+    path = root / model / folder / "results.json"
+    if not path.is_file():
+        return []
+    results = json.loads(path.read_text())["results"]
+    return next((r["trajectories"] for r in results if r["views"] == "all" and not r.get("pose_only") and not r.get("baseline")), [])
+
+
+def trajectory_mean(rows: list[dict], key: str) -> float:
+    """The official protocol's average: the mean over trajectories of a per-trajectory metric, NaN ones left out."""
+    values = [r["causal"][key] for r in rows if r["causal"].get(key) is not None and not math.isnan(r["causal"][key])]
+    return sum(values) / len(values) if values else math.nan
+
+
+def pooled_table(root: Path, models: list[str]) -> list[str]:
+    """V-IoU / C-IoU, all views, causal: the evaluation split (eval_), the seed-13 test episodes (eval13_) and
+    their trajectories pooled (the mean over all of them, not the mean of the two means)."""
+    lines = ["| model | " + " | ".join(f"{split.split('_')[1]} {part}" for split in SPLITS
+                                      for part in ("eval split", "seed 13", "pooled")) + " |", "|---|" + "---|" * 6]
+    for model in models:
+        cells = []
+        for split in SPLITS:
+            parts = [trajectories(root, model, f"eval_{split}"), trajectories(root, model, f"eval13_{split}")]
+            for rows in (*parts, parts[0] + parts[1] if all(parts) else []):
+                cells.append(f"{cell(trajectory_mean(rows, 'volumetric_iou'))} / {cell(trajectory_mean(rows, 'contact_iou'))} "
+                             f"({len(rows)})")
+        lines.append(f"| {model} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def models_table(root: Path, models: list[str], mode: str) -> list[str]:
@@ -95,7 +128,9 @@ def main() -> None:
     parser.add_argument("--others", nargs="*", default=[], help="baselines and other models for the first table")
     args = parser.parse_args()
     seeds = [args.model, args.second_seed]
-    sections = [("Models and baselines (all views, overall, causal)", models_table(args.runs, seeds + args.others, "causal")),
+    sections = [("Held-out trajectories pooled: V-IoU / C-IoU (trajectories), all views, causal",
+                 pooled_table(args.runs, seeds + args.others)),
+                ("Models and baselines (all views, overall, causal)", models_table(args.runs, seeds + args.others, "causal")),
                 ("Models and baselines (all views, overall, official stitched)", models_table(args.runs, seeds + args.others, "stitched")),
                 ("What vision adds over the pose (all views, causal)", vision_table(args.runs, seeds, "causal")),
                 ("Views: V-IoU / C-IoU (causal)", views_table(args.runs, seeds, "causal")),
