@@ -203,7 +203,9 @@ class Dashboard:
             if max_frames is not None and self.stats.frames >= max_frames:
                 if screenshot is None or screenshot in self.saved_screenshots:
                     break
-                if self.pending_screenshot is None:
+                if self.pending_screenshot is None and self.stats.frames > max_frames:
+                    # one frame rendered after the content stopped changing: an uploaded texture shows from the
+                    # frame after its upload on, and the frame buffer is read from the next frame rendered
                     self.request_screenshot(screenshot)
 
     def close(self) -> None:
