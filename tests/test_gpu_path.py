@@ -2,6 +2,7 @@
 captured calls falling back to eager on the CPU with identical outputs."""
 from __future__ import annotations
 
+import runpy
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 import torch
 
 from touchanything.app.cli import main
+from touchanything.app.sessions.bundled import SAMPLE_DIR, bundled_models
 from touchanything.app.sessions.scene import read_scene
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
@@ -17,11 +19,13 @@ from touchanything.inference.engine.captured_call import CapturedCall, CapturedC
 from touchanything.inference.engine.engine_config import EngineConfig, check_runtime
 from touchanything.inference.engine.engine_runtime import TorchRuntime
 from touchanything.inference.engine.streaming_engine import StreamingEngine
+from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.model_config import preset
 from touchanything.inference.model.preprocess import IMAGENET_STD, model_input, model_input_on_device
 from touchanything.inference.model.torch_device import check_precision, device_label, resolve_device
 from touchanything.inference.model.touch_model import TouchAnything
 
+TOLERANCE = 1e-4
 pytestmark = pytest.mark.skipif(torch.cuda.is_available(), reason="checks the CPU fallbacks of a machine without CUDA")
 
 
@@ -141,3 +145,18 @@ def test_a_scene_names_the_device_of_its_model(tmp_path, capsys):
     assert read_scene(tmp_path / "cpu.toml").model.device == "cpu"
     assert main(["live", "--scene", str(tmp_path / "gpu.toml"), "--headless", "--seconds", "0.5"]) == 0
     assert "no prediction: device 'cuda:0' asked for" in capsys.readouterr().out
+
+
+def test_the_exactness_benchmark_measures_the_bundled_nano_on_the_cpu():
+    """benchmarks/gpu_exactness.py (whose GPU figures docs/engine.md reports), on the CPU: the streamed newest
+    frame equals the batch forward, eager equals itself, bf16 stays close, fp16 is left out."""
+    bench = runpy.run_path(str(Path(__file__).resolve().parents[1] / "benchmarks" / "gpu_exactness.py"))
+    clip = bench["first_latency_clip"]([bench["episode_paths"](SAMPLE_DIR)[0]], 18)
+    row = bench["measure"](load_model(bundled_models()["nano"]), clip, torch.device("cpu"))
+    assert row["capture"] == "eager (CUDA graphs need a CUDA GPU)"
+    assert row["fp32 vs batch"] < TOLERANCE and row["eager vs graphs"] == 0.0
+    assert "fp16 vs fp32" not in row and 0.0 <= row["bf16 vs fp32"]["max"] < 0.05
+    assert 0.0 <= row["bf16 vs fp32"]["contact agreement"] <= 1.0
+    assert row["preprocessing levels"] <= 1.0 + 1e-3
+    table = bench["markdown"]({"machine": "m", "device": "cpu", "episode": "e", "frames": 18, "models": {"nano": row}})
+    assert "| nano | eager (CUDA graphs need a CUDA GPU) |" in table and "| n/a |" in table
