@@ -31,7 +31,8 @@ from touchanything.inference.training.train_config import train_config_from_file
 
 CONV_NANO = dataclasses.replace(PRESETS["nano"], image_size=64)
 BASELINE = dataclasses.replace(CONV_NANO, baseline=BaselineConfig(hidden=64, layers=1))
-MODELS = {"conv nano": CONV_NANO, "baseline": BASELINE}
+VIEW_SKIP = dataclasses.replace(CONV_NANO, tactile_decoder=dataclasses.replace(CONV_NANO.tactile_decoder, type="mlp_skip_views"))
+MODELS = {"conv nano": CONV_NANO, "baseline": BASELINE, "view skip": VIEW_SKIP}
 
 
 def make(config: ModelConfig, seed: int = 0):
@@ -177,3 +178,25 @@ def test_the_pose_skip_is_a_direct_path_from_the_pose_to_the_cells():
         a = model.decoder(fused, model.pose_encoder.normalised(poses[None, None]))
         b = model.decoder(fused, model.pose_encoder.normalised(poses[None, None] * 1.2))
     assert a.shape == (1, 1, 2, 21, 21) and not torch.allclose(a, b)
+
+
+def test_the_view_skip_reads_each_hand_s_own_wrist_camera_directly():
+    """mlp_skip_views: with the fused tokens and the pose fixed, the maps change with the pooled view slots; the
+    left hand reads the left wrist slot where the right hand reads the right one (and vice versa); mlp_skip
+    has no such input."""
+    poses = torch.from_numpy(prepare_poses(np.random.default_rng(1).normal([0, 0, 12], 0.2, (42, 3)), np.ones(2, bool)))
+    model = make(VIEW_SKIP)
+    d = model.config.embed_dim
+    fused, pose = torch.zeros(1, 1, 42, d), model.pose_encoder.normalised(poses[None, None])
+    slots = torch.randn(1, 1, 3, d)
+    swapped = slots[:, :, [0, 2, 1]]
+    with torch.no_grad():
+        a, b = model.decoder(fused, pose, slots), model.decoder(fused, pose, torch.zeros(1, 1, 3, d))
+        feats = model.decoder.joint_proj(torch.zeros(1, 21, d))
+        own_first = slots[0, :, [0, 1, 2]].flatten(1)  # chest, left wrist, right wrist: the left hand's order
+        left = model.decoder.hand(feats, pose[0, :, :21], own_first)
+        right_given_swapped = model.decoder(fused, pose, swapped)[0, 0, 1]
+        right_as_if_left = model.decoder.hand(feats, pose[0, :, 21:], own_first)
+    assert not torch.allclose(a, b) and torch.allclose(a[0, 0, 0], left[0, 0])
+    assert torch.allclose(right_given_swapped, right_as_if_left[0, 0])
+    assert make(CONV_NANO).decoder.views == 0 and model.frame_token_shape == (model.config.patches + 3, d)

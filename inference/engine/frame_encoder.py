@@ -9,13 +9,15 @@ import torch
 from torch import nn
 
 from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.inference.model.multi_view import view_slots
 from touchanything.inference.model.touch_model import TouchAnything
 from touchanything.inference.model.vit import DinoVisionTransformer, interpolate_pos_embed
 
 
 class FrameEncoder(nn.Module):
     """images (V, 3, S, S) ImageNet-normalised, view_ids (V,) int64 indices into VIEW_NAMES, in that order
-    → (N, D) `temporal_transformer.input_proj(multi_view_encoder(...))` for one frame.
+    → (N, D) `temporal_transformer.input_proj(multi_view_encoder(...))` for one frame; for the `mlp_skip_views`
+    decoder followed by the three pooled view slots (`multi_view.view_slots`), as `encode_frames` gives them.
 
     With V = 1 the softmax gate is exactly 1, so this equals the official single-view path
     (output_norm(tokens + view embedding)) bit for bit; with V ≥ 2 it is the official gated fusion.
@@ -26,6 +28,7 @@ class FrameEncoder(nn.Module):
         self.backbone = model.vision_encoder.encoder
         self.multi_view = model.multi_view_encoder
         self.input_proj = model.temporal_transformer.input_proj
+        self.view_slots = model.view_slots
 
     def view_embedding_table(self) -> torch.Tensor:
         """(3, 1, D) view embeddings in VIEW_NAMES order."""
@@ -38,7 +41,10 @@ class FrameEncoder(nn.Module):
         gates = self.multi_view.view_gate(self.multi_view.cross_view_transformer(summary)).squeeze(-1)
         weights = torch.softmax(gates, dim=-1)[0]
         fused = (weights[:, None, None] * encoded).sum(dim=0)
-        return self.input_proj(self.multi_view.output_norm(fused))
+        visual = self.input_proj(self.multi_view.output_norm(fused))
+        if self.view_slots:
+            return torch.cat([visual, view_slots(tokens.mean(dim=1), view_ids)])
+        return visual
 
 
 def bake_position_embedding(model: TouchAnything) -> None:

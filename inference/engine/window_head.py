@@ -29,7 +29,8 @@ def time_mixing_at(layer: DividedSpaceTimeLayer, x: torch.Tensor, positions: tor
 
 
 class WindowHead(nn.Module):
-    """frame_tokens (T, N, D) from `FrameEncoder`, joints (P, J, 3) prepared poses of the output frames,
+    """frame_tokens (T, N, D) from `FrameEncoder` (for the `mlp_skip_views` decoder the last three are the pooled
+    view slots, read by the decoder at the output positions), joints (P, J, 3) prepared poses of the output frames,
     joint_ids (J,) int64 (0–20 left, 21–41 right; J = 21 or 42), positions (P,) int64 in [0, T)
     → (P, J // 21, 21, 21) pressure in [0, 1], hands in joint_ids order.
 
@@ -42,6 +43,7 @@ class WindowHead(nn.Module):
         self.pose_encoder = model.pose_encoder
         self.fusion = model.fusion
         self.decoder = model.decoder
+        self.view_slots = model.view_slots
 
     def encode_poses(self, joints: torch.Tensor, joint_ids: torch.Tensor) -> torch.Tensor:
         """(P, J, 3) → (P, J, D): the pose encoder on the selected joints."""
@@ -59,6 +61,10 @@ class WindowHead(nn.Module):
 
     def forward(self, frame_tokens: torch.Tensor, joints: torch.Tensor, joint_ids: torch.Tensor,
                 positions: torch.Tensor) -> torch.Tensor:
+        views = None
+        if self.view_slots:
+            frame_tokens, slots = frame_tokens[:, :-3], frame_tokens[:, -3:]
+            views = self.decoder.hand_views(slots.index_select(0, positions), joint_ids[::JOINTS_PER_HAND] // JOINTS_PER_HAND)
         visual = self.visual_at(frame_tokens, positions)
         fused = self.fusion(visual[None], self.encode_poses(joints, joint_ids)[None])[0]
         feats = self.decoder.joint_proj(fused)
@@ -66,7 +72,7 @@ class WindowHead(nn.Module):
         per_hand = feats.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, c)
         if isinstance(self.decoder, MlpTactileDecoder):
             pose = self.pose_encoder.normalised(joints)
-            hands = self.decoder.hand(per_hand, pose.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, -1))
+            hands = self.decoder.hand(per_hand, pose.reshape(p * (j // JOINTS_PER_HAND), JOINTS_PER_HAND, -1), views)
         else:
             hands = self.decoder.hand(per_hand)
         return hands.reshape(p, j // JOINTS_PER_HAND, *hands.shape[-2:])

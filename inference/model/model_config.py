@@ -102,12 +102,13 @@ class FusionConfig:
     dropout: float = field(default=0.1, metadata=DROPOUT)
 
 
-DECODER_TYPES = ("joint_level", "mlp_skip")
+DECODER_TYPES = ("joint_level", "mlp_skip", "mlp_skip_views")
 
 
 @dataclass(frozen=True)
 class TactileDecoderConfig:
-    """`type`: `joint_level` (official) or `mlp_skip` (a project extension, `tactile_decoder.MlpTactileDecoder`)."""
+    """`type`: `joint_level` (official), or the project extensions `mlp_skip` and `mlp_skip_views`
+    (`tactile_decoder.MlpTactileDecoder`; `mlp_skip_views` also reads each view's pooled backbone tokens)."""
 
     FIXED: ClassVar = {"num_joints": NUM_JOINTS, "tactile_size": TACTILE_SIZE}
     type: str = "joint_level"

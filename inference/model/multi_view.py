@@ -43,9 +43,14 @@ class MultiViewEncoder(nn.Module):
         self.last_kept = tuple(order)
         return order
 
-    def encode_view(self, name: str, frames: torch.Tensor) -> torch.Tensor:
-        """(B, T, 3, H, W) → (B, T, N, D) backbone tokens plus the view embedding."""
-        return self.vision_encoder(frames) + self.view_embeddings[name]
+    def backbone_tokens(self, views: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """{view: (B, T, 3, H, W)} → {view: (B, T, N, D)} backbone tokens of the kept views (view dropout
+        applies when training)."""
+        return {v: self.vision_encoder(views[v]) for v in self.kept_views(views)}
+
+    def fuse_tokens(self, tokens: dict[str, torch.Tensor]) -> torch.Tensor:
+        """{view: (B, T, N, D)} backbone tokens → (B, T, N, D): view embeddings added, fused, normalised."""
+        return self.fuse({v: tokens[v] + self.view_embeddings[v] for v in tokens})
 
     def fuse(self, encoded: dict[str, torch.Tensor]) -> torch.Tensor:
         """{view: (B, T, N, D)} already encoded → (B, T, N, D) fused and normalised."""
@@ -61,8 +66,20 @@ class MultiViewEncoder(nn.Module):
         return self.output_norm(fused)
 
     def forward(self, views: dict[str, torch.Tensor]) -> torch.Tensor:
-        return self.fuse({v: self.encode_view(v, views[v]) for v in self.kept_views(views)})
+        return self.fuse_tokens(self.backbone_tokens(views))
 
-    def forward_tokens(self, tokens: dict[str, torch.Tensor]) -> torch.Tensor:
-        """The same as `forward` from backbone tokens {view: (B, T, N, D)} computed beforehand."""
-        return self.fuse({v: tokens[v] + self.view_embeddings[v] for v in self.kept_views(tokens)})
+
+def view_slots(pooled: torch.Tensor, view_ids: torch.Tensor) -> torch.Tensor:
+    """pooled (..., V, D) one vector per present view, view_ids (V,) their indices in VIEW_NAMES
+    → (..., 3, D): each view's vector in its VIEW_NAMES slot, zeros in the slots of absent views."""
+    placement = torch.nn.functional.one_hot(view_ids, len(VIEW_NAMES)).to(pooled.dtype)  # (V, 3)
+    return torch.einsum("...vd,vs->...sd", pooled, placement)
+
+
+def pooled_view_slots(tokens: dict[str, torch.Tensor]) -> torch.Tensor:
+    """{view: (B, T, N, D)} backbone tokens of the present views → (B, T, 3, D) each view's mean token in its
+    VIEW_NAMES slot (`view_slots`)."""
+    order = [v for v in VIEW_NAMES if v in tokens]
+    pooled = torch.stack([tokens[v].mean(dim=2) for v in order], dim=2)
+    ids = torch.tensor([VIEW_NAMES.index(v) for v in order], device=pooled.device)
+    return view_slots(pooled, ids)

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 from torch import nn
 
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.inference.model.model_config import TACTILE_SIZE, ModelConfig
+from touchanything.inference.model.multi_view import view_slots
 from touchanything.inference.model.pose_encoder import JOINTS_PER_HAND, hand_statistics, standardised_hand_features
 from touchanything.inference.model.vision_encoder import VisionEncoder
 
@@ -71,11 +71,10 @@ class SingleFrameBaseline(nn.Module):
         self.last_kept = tuple(order)
         return order
 
-    def _slots(self, pooled: torch.Tensor, view_ids: torch.Tensor) -> torch.Tensor:
-        """pooled (..., V, D), view_ids (V,) → (..., 1, 3·D): each view's vector in its slot, zeros elsewhere."""
-        placement = F.one_hot(view_ids, len(VIEW_NAMES)).to(pooled.dtype)  # (V, 3)
-        slots = torch.einsum("...vd,vs->...sd", pooled, placement)
-        return slots.flatten(-2).unsqueeze(-2)
+    @staticmethod
+    def _slots(pooled: torch.Tensor, view_ids: torch.Tensor) -> torch.Tensor:
+        """pooled (..., V, D), view_ids (V,) → (..., 1, 3·D): `view_slots` flattened into one token."""
+        return view_slots(pooled, view_ids).flatten(-2).unsqueeze(-2)
 
     def encode_frames(self, views: dict[str, torch.Tensor]) -> torch.Tensor:
         """{view: (B, T, 3, S, S)} → (B, T, 1, 3·D), after view dropout when training."""

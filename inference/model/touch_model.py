@@ -13,7 +13,7 @@ from torch import nn
 
 from touchanything.inference.model.fusion import CrossAttentionFusion
 from touchanything.inference.model.model_config import NUM_JOINTS, TACTILE_SIZE, ModelConfig
-from touchanything.inference.model.multi_view import MultiViewEncoder
+from touchanything.inference.model.multi_view import MultiViewEncoder, pooled_view_slots
 from touchanything.inference.model.pose_encoder import TransformerPoseEncoder
 from touchanything.inference.model.tactile_decoder import JointLevelTactileDecoder, MlpTactileDecoder
 from touchanything.inference.model.temporal import TemporalTransformer
@@ -34,9 +34,10 @@ class TouchAnything(nn.Module):
         self.pose_encoder = TransformerPoseEncoder(width, pe.num_layers, pe.num_heads, pe.mlp_ratio, pe.dropout, NUM_JOINTS,
                                                    pe.input)
         self.fusion = CrossAttentionFusion(width, fu.num_layers, fu.num_heads, fu.mlp_ratio, fu.dropout)
-        if c.tactile_decoder.type == "mlp_skip":
+        self.view_slots = c.tactile_decoder.type == "mlp_skip_views"
+        if c.tactile_decoder.type in ("mlp_skip", "mlp_skip_views"):
             self.decoder = MlpTactileDecoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE,
-                                             self.pose_encoder.pose_scale.numel())
+                                             self.pose_encoder.pose_scale.numel(), 3 * width if self.view_slots else 0)
         else:
             self.decoder = JointLevelTactileDecoder(width, c.tactile_decoder.conv_channels, c.tactile_decoder.dropout, TACTILE_SIZE)
 
@@ -48,19 +49,22 @@ class TouchAnything(nn.Module):
         if poses is None:
             raise ValueError("poses (B, T, 42, 3) are required for tactile prediction")
         if views is not None:
-            visual = self.multi_view_encoder(views)
+            visual = self.encode_frames(views)
         elif tokens is not None:
-            visual = self.multi_view_encoder.forward_tokens(tokens)
+            kept = self.multi_view_encoder.kept_views(tokens)
+            visual = self.encode_tokens({v: tokens[v] for v in kept})
         elif frames is not None:
             visual = self.vision_encoder(frames)
+            visual = torch.cat([visual, pooled_view_slots({"ego": visual})], dim=2) if self.view_slots else visual
         else:
             raise ValueError("give views={...}, tokens={...} or frames=")
         return {"tactile": self.head(visual, poses)}
 
     @property
     def frame_token_shape(self) -> tuple[int, int]:
-        """(N, D) of the per-frame half's output: one token per backbone patch."""
-        return self.config.patches, self.config.embed_dim
+        """(N, D) of the per-frame half's output: one token per backbone patch, then, for the `mlp_skip_views`
+        decoder, the three pooled view slots."""
+        return self.config.patches + (3 if self.view_slots else 0), self.config.embed_dim
 
     @property
     def last_kept(self) -> tuple[str, ...]:
@@ -68,16 +72,25 @@ class TouchAnything(nn.Module):
         return self.multi_view_encoder.last_kept
 
     def encode_frames(self, views: dict[str, torch.Tensor]) -> torch.Tensor:
-        """{view: (B, T, 3, S, S)} → (B, T, N, D) fused visual tokens (the per-frame half)."""
-        return self.multi_view_encoder(views)
+        """{view: (B, T, 3, S, S)} → (B, T, N, D) fused visual tokens (the per-frame half), followed for the
+        `mlp_skip_views` decoder by the kept views' pooled backbone tokens in their three slots."""
+        return self.encode_tokens(self.multi_view_encoder.backbone_tokens(views))
+
+    def encode_tokens(self, tokens: dict[str, torch.Tensor]) -> torch.Tensor:
+        """`encode_frames` from the kept views' backbone tokens {view: (B, T, N, D)}."""
+        fused = self.multi_view_encoder.fuse_tokens(tokens)
+        return torch.cat([fused, pooled_view_slots(tokens)], dim=2) if self.view_slots else fused
 
     def set_pose_statistics(self, poses) -> int:
         """The `hand` pose input's standardisation from prepared training poses (N, 42, 3); 0 for `camera`."""
         return self.pose_encoder.set_statistics(poses)
 
     def head(self, visual: torch.Tensor, poses: torch.Tensor) -> torch.Tensor:
-        """Fused visual tokens (B, T, N, D) and prepared poses (B, T, 42, 3) → (B, T, 2, 21, 21)."""
+        """`encode_frames`'s tokens (B, T, N, D) and prepared poses (B, T, 42, 3) → (B, T, 2, 21, 21)."""
+        slots = None
+        if self.view_slots:
+            visual, slots = visual[:, :, :-3], visual[:, :, -3:]
         fused = self.fusion(self.temporal_transformer(visual), self.pose_encoder(poses))
         if isinstance(self.decoder, MlpTactileDecoder):
-            return self.decoder(fused, self.pose_encoder.normalised(poses))
+            return self.decoder(fused, self.pose_encoder.normalised(poses), slots)
         return self.decoder(fused)
