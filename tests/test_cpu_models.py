@@ -31,8 +31,8 @@ from touchanything.inference.training.train_config import train_config_from_file
 
 CONV_NANO = dataclasses.replace(PRESETS["nano"], image_size=64)
 BASELINE = dataclasses.replace(CONV_NANO, baseline=BaselineConfig(hidden=64, layers=1))
-VIEW_SKIP = dataclasses.replace(CONV_NANO, tactile_decoder=dataclasses.replace(CONV_NANO.tactile_decoder, type="mlp_skip_views"))
-MODELS = {"conv nano": CONV_NANO, "baseline": BASELINE, "view skip": VIEW_SKIP}
+POSE_SKIP = dataclasses.replace(CONV_NANO, tactile_decoder=dataclasses.replace(CONV_NANO.tactile_decoder, type="mlp_skip"))
+MODELS = {"conv nano": CONV_NANO, "baseline": BASELINE, "pose skip only": POSE_SKIP}
 
 
 def make(config: ModelConfig, seed: int = 0):
@@ -170,22 +170,24 @@ def test_the_bundled_configs_are_the_presets(name):
 
 
 def test_the_pose_skip_is_a_direct_path_from_the_pose_to_the_cells():
-    """With the fused tokens fixed, the mlp_skip decoder's maps still change with the hand pose."""
-    model = make(PRESETS["nano"])
-    fused = torch.zeros(1, 1, 42, model.config.embed_dim)
+    """With the fused tokens (and view slots) fixed, the mlp_skip and mlp_skip_views decoders' maps still change
+    with the hand pose."""
     poses = torch.from_numpy(prepare_poses(np.random.default_rng(1).normal([0, 0, 12], 0.2, (42, 3)), np.ones(2, bool)))
-    with torch.no_grad():
-        a = model.decoder(fused, model.pose_encoder.normalised(poses[None, None]))
-        b = model.decoder(fused, model.pose_encoder.normalised(poses[None, None] * 1.2))
-    assert a.shape == (1, 1, 2, 21, 21) and not torch.allclose(a, b)
+    for config in (PRESETS["nano"], POSE_SKIP):
+        model = make(config)
+        fused, slots = torch.zeros(1, 1, 42, model.config.embed_dim), torch.ones(1, 1, 3, model.config.embed_dim)
+        with torch.no_grad():
+            a = model.decoder(fused, model.pose_encoder.normalised(poses[None, None]), slots)
+            b = model.decoder(fused, model.pose_encoder.normalised(poses[None, None] * 1.2), slots)
+        assert a.shape == (1, 1, 2, 21, 21) and not torch.allclose(a, b)
 
 
 def test_the_view_skip_reads_each_hand_s_own_wrist_camera_directly():
-    """mlp_skip_views: with the fused tokens and the pose fixed, the maps change with the pooled view slots; the
-    left hand reads the left wrist slot where the right hand reads the right one (and vice versa); mlp_skip
-    has no such input."""
+    """mlp_skip_views (the CPU presets): with the fused tokens and the pose fixed, the maps change with the pooled
+    view slots; the left hand reads the left wrist slot where the right hand reads the right one (and vice
+    versa); mlp_skip has no such input."""
     poses = torch.from_numpy(prepare_poses(np.random.default_rng(1).normal([0, 0, 12], 0.2, (42, 3)), np.ones(2, bool)))
-    model = make(VIEW_SKIP)
+    model = make(CONV_NANO)
     d = model.config.embed_dim
     fused, pose = torch.zeros(1, 1, 42, d), model.pose_encoder.normalised(poses[None, None])
     slots = torch.randn(1, 1, 3, d)
@@ -199,4 +201,4 @@ def test_the_view_skip_reads_each_hand_s_own_wrist_camera_directly():
         right_as_if_left = model.decoder.hand(feats, pose[0, :, 21:], own_first)
     assert not torch.allclose(a, b) and torch.allclose(a[0, 0, 0], left[0, 0])
     assert torch.allclose(right_given_swapped, right_as_if_left[0, 0])
-    assert make(CONV_NANO).decoder.views == 0 and model.frame_token_shape == (model.config.patches + 3, d)
+    assert make(POSE_SKIP).decoder.views == 0 and model.frame_token_shape == (model.config.patches + 3, d)

@@ -200,35 +200,6 @@ def test_loader_workers_give_the_same_batches_as_the_main_process(data, tmp_path
     assert _open_hdf5_files() == open_before  # the main process holds no HDF5 file open when workers fork
 
 
-def test_random_clip_starts_move_every_epoch_the_same_way_with_loader_workers(data, tmp_path):
-    """data.random_clip_starts: each clip starts within 15 frames after its official start (never past the last
-    full clip), other frames every epoch, the same with 0 and 2 loader workers; the validation clips and the
-    official sampler stay put."""
-    import dataclasses
-
-    def trainer(workers: int, name: str, random_starts: bool = True) -> Trainer:
-        run = dataclasses.replace(config(num_workers=workers), data=TrainingDataConfig(random_clip_starts=random_starts))
-        return Trainer(run, data, tmp_path / name, log=lambda _: None)
-
-    main_process, workers, official = trainer(0, "a"), trainer(2, "b"), trainer(0, "c", random_starts=False)
-    starts = []
-    for epoch in (0, 1):
-        expected, got = list(main_process.epoch_batches(epoch)), list(workers.epoch_batches(epoch))
-        assert all(_same(a, b) for a, b in zip(expected, got, strict=True))
-        starts.append(sorted(zip(torch.cat([b["episode"] for b in expected]).tolist(),
-                                 torch.cat([b["frames"][:, 0] for b in expected]).tolist())))
-        assert all(_same(a, b) for a, b in zip(main_process.val_loader, official.val_loader, strict=True))
-    dataset = main_process.train_set
-    official_starts = sorted(dataset.items)
-    assert starts[0] != starts[1] and starts[0] != official_starts
-    for epoch_starts in starts:
-        for (e, start), (e0, start0) in zip(epoch_starts, official_starts):
-            assert e == e0 and start0 <= start < start0 + 15 and start <= len(dataset.episodes[e].poses) - 15
-    assert sorted(zip(torch.cat([b["episode"] for b in official.epoch_batches(1)]).tolist(),
-                      torch.cat([b["frames"][:, 0] for b in official.epoch_batches(1)]).tolist())) == official_starts
-    assert "random clip starts" in describe_settings(main_process.config)[-1]
-
-
 def test_num_workers_is_read_validated_and_shown(tmp_path):
     path = tmp_path / "workers.yaml"
     path.write_text("training: {num_workers: 2}\n")

@@ -248,11 +248,11 @@ def _light(backbone: str, size: int, temporal: int, heads: int, channels: int) -
 
 def _cpu(backbone: str, size: int, temporal: int, channels: int) -> ModelConfig:
     """A CPU preset (docs/findings.md): `_light` with 4 heads and the project extensions — a conv backbone
-    trained from scratch, the wrist-relative hand pose input, the MLP decoder with the pose skip."""
+    trained from scratch, the wrist-relative hand pose input, the MLP decoder with the pose and view skips."""
     light = _light(backbone, size, temporal, 4, channels)
     return replace(light, vision_encoder=VisionEncoderConfig(type="conv", model_name=backbone, freeze=False),
                    pose_encoder=replace(light.pose_encoder, input="hand"),
-                   tactile_decoder=replace(light.tactile_decoder, type="mlp_skip"))
+                   tactile_decoder=replace(light.tactile_decoder, type="mlp_skip_views"))
 
 
 PRESETS = {

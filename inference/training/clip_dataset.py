@@ -1,11 +1,6 @@
 """Training clips: the official sampler (T = 8 frames at interval 2, non-overlapping starts 0, 15, 30, …),
 pose rules and target preparation over HDF5 trajectories, and the DataLoader that feeds them.
 
-With random starts (`data.random_clip_starts`, a project extension) each clip's start moves by an offset in
-[0, 15) drawn from (seed, epoch, clip) — clipped to the trajectory's last full clip — so every epoch sees other
-frames of the same trajectories; the loader then asks for index `clip + epoch · len(dataset)`
-(`EpochIndexSampler`), so workers need no epoch state and any number of them yields the same batches.
-
 Poses and pressure (small) are read once when the dataset is built. Frames come from a `FrameCache` (decoded
 and resized once, memory-mapped) when one is given, else they are decoded and resized per clip, inside the
 DataLoader's worker processes when there are any (`blank`: none is decoded; every view shows black frames,
@@ -99,11 +94,9 @@ class ClipDataset(Dataset):
     only on the index (no random numbers are drawn), so any number of workers yields the same batches."""
 
     def __init__(self, files: list[Path], size: int, pose_source: str = "wilor", fallback: str | None = None,
-                 blank: bool = False, cache: FrameCache | None = None, on_episode=None,
-                 random_starts_seed: int | None = None) -> None:
+                 blank: bool = False, cache: FrameCache | None = None, on_episode=None) -> None:
         """`cache`: frames from it (entries built here, before any worker starts); `on_episode()` is called
-        after each trajectory is ready (a progress bar); `random_starts_seed`: None for the official starts,
-        else the seed of the random starts (indices ≥ len(self) then name the epoch, see the module)."""
+        after each trajectory is ready (a progress bar)."""
         self.episodes = []
         self.cache = None if blank else cache
         for f in files:
@@ -114,26 +107,13 @@ class ClipDataset(Dataset):
         self.size, self.blank = size, blank
         self.offsets = np.arange(CLIP_LENGTH) * FRAME_INTERVAL
         self.items = [(e, s) for e, ep in enumerate(self.episodes) for s in clip_starts(len(ep.poses), SPAN)]
-        self.random_starts_seed = random_starts_seed
         self._files: dict[int, h5py.File] = {}  # filled only inside a DataLoader worker
 
     def __len__(self) -> int:
         return len(self.items)
 
-    def clip_start(self, index: int) -> tuple[int, int]:
-        """(episode, first frame) of item `index`: the official start, or with random starts the start of
-        clip `index % len(self)` in epoch `index // len(self)`."""
-        epoch, item = divmod(index, len(self.items))
-        e, start = self.items[item]
-        if self.random_starts_seed is None:
-            if epoch:
-                raise IndexError(f"clip {index} of {len(self.items)}")
-            return e, start
-        shift = int(np.random.default_rng([self.random_starts_seed, epoch, item]).integers(SPAN))
-        return e, min(start + shift, len(self.episodes[e].poses) - SPAN)
-
     def __getitem__(self, index: int) -> dict:
-        e, start = self.clip_start(index)
+        e, start = self.items[index]
         episode = self.episodes[e]
         frames = start + self.offsets
         target, mask = prepare_target(episode.pressure[frames], episode.normalized)
@@ -180,22 +160,13 @@ class ClipDataset(Dataset):
         return self._files[e]
 
 
-class EpochIndexSampler(DistributedSampler):
-    """The DistributedSampler's indices of this epoch, each + epoch · len(dataset) (random clip starts)."""
-
-    def __iter__(self):
-        return (i + self.epoch * len(self.dataset) for i in super().__iter__())
-
-
 def clip_loader(dataset: ClipDataset, batch_size: int, num_workers: int, seed: int, shuffle: bool,
                 pin_memory: bool = False, replicas: int = 1, rank: int = 0) -> DataLoader:
     """A loader kept for the whole run (workers persist across epochs); call `loader.sampler.set_epoch(e)`
     before each pass. The order is a permutation seeded by `seed + epoch` (this rank's share of it under
     DDP), whatever the number of workers; the loader draws its workers' seeds from its own generator, so
-    it never consumes the global torch RNG (view dropout, dropout) — 0 and N workers train identically.
-    A dataset with random clip starts gets epoch-numbered indices (`EpochIndexSampler`)."""
-    kind = DistributedSampler if dataset.random_starts_seed is None else EpochIndexSampler
-    sampler = kind(dataset, num_replicas=replicas, rank=rank, shuffle=shuffle, seed=seed)
+    it never consumes the global torch RNG (view dropout, dropout) — 0 and N workers train identically."""
+    sampler = DistributedSampler(dataset, num_replicas=replicas, rank=rank, shuffle=shuffle, seed=seed)
     return DataLoader(dataset, batch_size=batch_size, sampler=sampler, num_workers=num_workers,
                       pin_memory=pin_memory, persistent_workers=num_workers > 0,
                       generator=torch.Generator().manual_seed(seed))

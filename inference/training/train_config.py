@@ -85,7 +85,6 @@ class TrainingDataConfig:
     pose_source: str = "wilor"
     fallback_pose_source: str | None = None
     colour_augmentation: float = field(default=0.0, metadata=limits(0.0, 1.0))
-    random_clip_starts: bool = False
 
 
 @dataclass(frozen=True)
@@ -185,8 +184,7 @@ def describe_settings(config: TrainConfig) -> list[str]:
         f"+ tv {loss.tv_weight:g}; clips of {CLIP_LENGTH} frames at interval {FRAME_INTERVAL}; poses {config.data.pose_source}"
         f"{' falling back to ' + config.data.fallback_pose_source if config.data.fallback_pose_source else ''}"
         f"{'; images blanked (pose-only baseline)' if config.model.blank_images else ''}"
-        f"{_augmentation_note(config)}"
-        f"{'; random clip starts' if config.data.random_clip_starts else ''}; "
+        f"{_augmentation_note(config)}; "
         f"validation every {t.val_interval} epoch(s), a checkpoint every {t.save_interval}",
     ]
     if config.unused:

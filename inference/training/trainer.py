@@ -88,16 +88,16 @@ class Trainer:
         val_files = _files(data, split_file, "val")
         frame_cache = None if c.blank_images else self._frame_cache(Path(data), c.image_size)
 
-        def dataset(files: list[Path], bar: tqdm, random_starts: bool = False) -> ClipDataset:
+        def dataset(files: list[Path], bar: tqdm) -> ClipDataset:
             d = config.data
             return ClipDataset(files, c.image_size, d.pose_source, d.fallback_pose_source, c.blank_images, frame_cache,
-                               on_episode=lambda: bar.update(1), random_starts_seed=config.system.seed if random_starts else None)
+                               on_episode=lambda: bar.update(1))
 
         if self.world > 1 and self.rank != 0:
             dist.barrier()  # rank 0 builds the missing frame-cache entries first; the others reuse them
         with tqdm(total=len(train_files) + len(val_files), desc="trajectories", unit="file", disable=self.rank != 0,
                   leave=False) as bar:
-            self.train_set = dataset(train_files, bar, config.data.random_clip_starts)
+            self.train_set = dataset(train_files, bar)
             self.val_set = dataset(val_files, bar)
         if self.world > 1 and self.rank == 0:
             dist.barrier()
