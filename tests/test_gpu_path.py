@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from torch.overrides import TorchFunctionMode
 
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import SAMPLE_DIR, bundled_models
@@ -18,6 +19,7 @@ from touchanything.inference.engine import captured_call
 from touchanything.inference.engine.captured_call import CapturedCall, CapturedCalls
 from touchanything.inference.engine.engine_config import EngineConfig, check_runtime
 from touchanything.inference.engine.engine_runtime import TorchRuntime
+from touchanything.inference.engine.model_halves import model_halves
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.model_config import preset
@@ -87,6 +89,35 @@ def test_beyond_the_graph_limit_calls_run_eagerly(monkeypatch):
         assert torch.equal(calls(torch.zeros(rows)), torch.ones(rows))
     assert len(calls.calls) == 2 and calls.eager_beyond_limit == 2
 
+
+
+class HostData(TorchFunctionMode):
+    """Records the calls that move data between the host and tensors. Inside a CUDA-graph capture a tensor made
+    from Python data is a CPU→GPU copy, which fails the capture (the new nano's decoder did, on an H200), and
+    `item`/`cpu` read the GPU back."""
+    NAMES = {"tensor", "as_tensor", "item", "tolist", "cpu", "numpy"}
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen: list[str] = []
+
+    def __torch_function__(self, func, types, args=(), kwargs=None):
+        if getattr(func, "__name__", "") in self.NAMES:
+            self.seen.append(func.__name__)
+        return func(*args, **(kwargs or {}))
+
+
+@pytest.mark.parametrize("name", ["nano", "tiny", "small", "bundled nano", "bundled baseline_frames"])
+def test_the_captured_halves_make_no_tensor_from_host_data(name):
+    torch.manual_seed(0)
+    model = load_model(bundled_models()[name.split()[1]]) if name.startswith("bundled") else TouchAnything(preset(name))
+    encoder, head = model_halves(model.eval())
+    size, (tokens, width) = model.config.image_size, model.frame_token_shape
+    with torch.no_grad(), HostData() as host:
+        encoded = encoder(torch.rand(3, 3, size, size), torch.arange(3))
+        maps = head(torch.rand(8, tokens, width), torch.rand(2, 42, 3), torch.arange(42), torch.arange(2) * 7)
+    assert encoded.shape == (tokens, width) and maps.shape[:2] == (2, 2)
+    assert host.seen == [], host.seen
 
 def clip(count: int = 20) -> list[Snapshot]:
     rng = np.random.default_rng(3)

@@ -61,13 +61,13 @@ class MlpTactileDecoder(nn.Module):
         self.joint_proj = nn.Sequential(nn.Linear(width, channels), nn.GELU(), nn.Dropout(dropout))
         self.cells = nn.Sequential(nn.Linear(21 * (channels + skip) + views, 8 * channels), nn.GELU(), nn.Dropout(dropout),
                                    nn.Linear(8 * channels, size * size), nn.Sigmoid())
+        # on the model's device, so that a CUDA-graph capture copies nothing from the CPU; not in the state dict
+        self.register_buffer("view_order", torch.tensor(HAND_VIEW_ORDER), persistent=False)
 
-    @staticmethod
-    def hand_views(slots: torch.Tensor, hand_ids: torch.Tensor) -> torch.Tensor:
+    def hand_views(self, slots: torch.Tensor, hand_ids: torch.Tensor) -> torch.Tensor:
         """slots (N, 3, D) per frame, hand_ids (H,) 0 left / 1 right → (N·H, 3·D), frame-major, each hand's
         slots in its `HAND_VIEW_ORDER`."""
-        order = torch.tensor(HAND_VIEW_ORDER, device=slots.device)[hand_ids]  # (H, 3)
-        return slots[:, order].reshape(-1, 3 * slots.shape[-1])
+        return slots[:, self.view_order[hand_ids]].reshape(-1, 3 * slots.shape[-1])
 
     def hand(self, feats: torch.Tensor, pose: torch.Tensor, views: torch.Tensor | None = None) -> torch.Tensor:
         """(M, 21, C) hands' joint features, (M, 21, skip) their normalised pose input and, when the decoder
