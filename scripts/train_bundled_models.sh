@@ -3,9 +3,10 @@
 # the split and on 60 episodes of a further simulator seed) and bundle them
 # (docs/findings.md): nano (the bundled model), nano with a second seed (the seed spread), nano on black frames
 # (nano_pose_only, for `eval --pose-only-baseline`) and the two baselines every model is judged against
-# (baseline_pose, baseline_frames). Runs the trainings side by side, one torch thread each (docs/findings.md has
-# the times on the 2-core CPU machine). Run from the repository root after `make test` (or any command that
-# created .venv). `configs/tiny.yaml` and `configs/nano_no_dropout.yaml` train the same way.
+# (baseline_pose, baseline_frames, and the frames baseline with nano's colour augmentation). Runs the trainings
+# side by side, one torch thread each (docs/training.md has the times on the 2-core CPU machine). Run from the
+# repository root after `make test` (or any command that created .venv). `configs/tiny.yaml` (several hours
+# here) and `configs/nano_no_dropout.yaml` train and evaluate the same way: `train tiny; evaluate tiny --views all`.
 set -euo pipefail
 TA=.venv/bin/touchanything
 $TA simulate data/sim240 --episodes 240 --seconds 10 --seed 11 --workers 2
@@ -48,10 +49,10 @@ evaluate() {  # evaluate NAME VIEWS... [more eval options]
   done
 }
 train nano & train nano_seed7 & train nano_pose_only & wait
-train baseline_pose & train baseline_frames & wait
-evaluate nano --views ego all --pose-only-baseline data/runs/nano_pose_only/best_model.pth
-evaluate nano_seed7 --views all --pose-only-baseline data/runs/nano_pose_only/best_model.pth
-for name in baseline_pose baseline_frames; do evaluate $name --views all; done
+train baseline_pose & train baseline_frames & train baseline_frames_aug & wait
+evaluate nano --views ego ego+left ego+right all --pose-only-baseline data/runs/nano_pose_only/best_model.pth
+evaluate nano_seed7 --views ego all --pose-only-baseline data/runs/nano_pose_only/best_model.pth
+for name in baseline_pose baseline_frames baseline_frames_aug; do evaluate $name --views all; done
 card() { echo "test_seen=data/runs/$1/eval_test_seen/results.json test_unseen=data/runs/$1/eval_test_unseen/results.json"; }
 bundle() {  # bundle NAME RUN_EVALUATED_IN
   # shellcheck disable=SC2046
@@ -59,4 +60,4 @@ bundle() {  # bundle NAME RUN_EVALUATED_IN
     --trained-on "simulated EgoTouch world, 162 episodes" --eval $(card "$2")
 }
 bundle nano nano; bundle nano_pose_only nano; bundle baseline_pose baseline_pose; bundle baseline_frames baseline_frames
-.venv/bin/python scripts/findings_table.py data/runs nano nano_seed7 --others nano_pose_only baseline_pose baseline_frames
+.venv/bin/python scripts/findings_table.py data/runs nano nano_seed7 --others nano_pose_only baseline_pose baseline_frames baseline_frames_aug
