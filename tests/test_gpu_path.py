@@ -90,7 +90,6 @@ def test_beyond_the_graph_limit_calls_run_eagerly(monkeypatch):
     assert len(calls.calls) == 2 and calls.eager_beyond_limit == 2
 
 
-
 class HostData(TorchFunctionMode):
     """Records the calls that move data between the host and tensors. Inside a CUDA-graph capture a tensor made
     from Python data is a CPU→GPU copy, which fails the capture (the new nano's decoder did, on an H200), and
@@ -118,6 +117,7 @@ def test_the_captured_halves_make_no_tensor_from_host_data(name):
         maps = head(torch.rand(8, tokens, width), torch.rand(2, 42, 3), torch.arange(42), torch.arange(2) * 7)
     assert encoded.shape == (tokens, width) and maps.shape[:2] == (2, 2)
     assert host.seen == [], host.seen
+
 
 def clip(count: int = 20) -> list[Snapshot]:
     rng = np.random.default_rng(3)
