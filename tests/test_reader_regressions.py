@@ -122,6 +122,23 @@ def test_a_video_with_a_damaged_header_is_unreadable_not_a_crash(episode_dir):
             assert any(p.startswith(f"{path}: ") and ("unreadable video" in p or "no video stream" in p) for p in ep.problems)
 
 
+def test_a_video_whose_header_gives_an_absurd_frame_rate_reads_at_30_fps(episode_dir):
+    """Found by the fuzzer: one flipped bit in the fragment header's default sample duration (512 → 33554944
+    ticks of 1/15360 s) left an average rate of 30/65537 fps, and seeking divided by zero."""
+    from touchanything.devices.episodes.video_io import VideoReader
+
+    path = episode_dir / "left.mp4"
+    with VideoReader(path) as reader:
+        frames = list(reader.frames())
+    data = bytearray(path.read_bytes())
+    duration = data.find(b"tfhd") + 12  # "tfhd", version and flags, track id, then the default sample duration
+    assert data[duration:duration + 4] == (512).to_bytes(4, "big")
+    data[duration] ^= 2
+    path.write_bytes(bytes(data))
+    with VideoReader(path) as reader:
+        assert reader._stream.average_rate < 1 and reader.fps == 30.0
+        assert reader.read(0) is not None and len(list(reader.frames())) == len(frames)
+
 @pytest.mark.parametrize("entry", ["", "x" * 300 + ".hdf5", "a\x00b.hdf5"])
 def test_a_split_entry_that_is_no_path_is_one_line(tmp_path, entry):
     from touchanything.devices.episodes.dataset_split import read_split

@@ -15,7 +15,8 @@ import numpy as np
 from touchanything.devices.errors import DataError
 
 MAX_FPS = 240
-"""A frame rate guessed from a damaged header above this is not believed (30 is used)."""
+"""A frame rate outside 1..MAX_FPS (a damaged header: 30/65537 was seen) is not believed: the guessed rate, else
+30, is used."""
 SEEK_AHEAD = 45
 """Decode forward instead of seeking when the wanted frame is at most this many frames ahead."""
 
@@ -48,8 +49,8 @@ class VideoReader:
                                                           and self._stream.codec_context.height > 0):
                 raise DataError(self.path, None, "unreadable video (no picture size: the file's header is damaged)")
             self._stream.thread_type = "AUTO"
-            guessed = float(self._stream.guessed_rate or 0)
-            self.fps = float(self._stream.average_rate or (guessed if 1 <= guessed <= MAX_FPS else 30))
+            rates = (float(self._stream.average_rate or 0), float(self._stream.guessed_rate or 0))
+            self.fps = next((rate for rate in rates if 1 <= rate <= MAX_FPS), 30.0)
             self.width = self._stream.codec_context.width
             self.height = self._stream.codec_context.height
             self.num_frames = self._count_packets()
