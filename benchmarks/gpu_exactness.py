@@ -7,7 +7,7 @@ weights, seed 0) and the bundled `nano` (trained weights), each a newest-frame e
 - `fp32 vs batch`: the engine's newest-frame output against the batch forward of the same 8-frame clip on
   the same device, fp32, with the same preprocessing (max |difference| over the hands the engine predicted);
 - `eager vs graphs`: the engine with CUDA graphs off against on (both fp32; on the CPU both are eager);
-- `bf16 vs fp32`, `fp16 vs fp32` (fp16 on a GPU only): max and mean |difference|, and the share of hand-frames
+- `bf16 vs fp32`, `fp16 vs fp32`, `tf32 vs fp32` (fp16 and tf32 on a GPU only): max and mean |difference|, and the share of hand-frames
   whose contact (the dashboard's lamp: the official rule per hand, `viz.contact.hand_contact`) is the same;
 - `preprocessing`: the device's resize (`model_input_on_device`) against cv2's (`model_input`), in intensity
   levels of 1/255, over every frame and view of the clip at each model's input size.
@@ -117,7 +117,7 @@ def measure(model: torch.nn.Module, clip: list[Snapshot], device: torch.device) 
     row = {"capture": status, "fp32 vs batch": max_difference(fp32, batch, frames)[0],
            "eager vs graphs": max_difference(eager, fp32, frames)[0],
            "preprocessing levels": preprocessing_levels(clip, model.config.image_size, device)}
-    for precision in (p for p in PRECISIONS if p != "fp32" and (p != "fp16" or device.type == "cuda")):
+    for precision in (p for p in PRECISIONS if p != "fp32" and (p not in ("fp16", "tf32") or device.type == "cuda")):
         low, _ = engine_outputs(model, clip, device, precision, capture=True)
         worst, mean = max_difference(low, fp32, frames)
         row[f"{precision} vs fp32"] = {"max": worst, "mean": mean, "contact agreement": contact_agreement(low, fp32, frames)}
@@ -128,12 +128,13 @@ def markdown(record: dict) -> str:
     lines = ["# Streaming-engine exactness on a device (`benchmarks/gpu_exactness.py`)", "",
              f"{record['machine']}; device {record['device']}; {record['frames']} frames of `{record['episode']}`.", "",
              "| model | capture | fp32 vs batch | eager vs graphs | bf16 vs fp32 max / mean / contact | "
-             "fp16 vs fp32 max / mean / contact | preprocessing (levels) |", "|---|---|---|---|---|---|---|"]
+             "fp16 vs fp32 max / mean / contact | tf32 vs fp32 max / mean / contact | preprocessing (levels) |",
+             "|---|---|---|---|---|---|---|---|"]
     for name, r in record["models"].items():
-        low = [r.get(f"{p} vs fp32") for p in ("bf16", "fp16")]
+        low = [r.get(f"{p} vs fp32") for p in ("bf16", "fp16", "tf32")]
         cells = ["n/a" if x is None else f"{x['max']:.4f} / {x['mean']:.5f} / {x['contact agreement']:.1%}" for x in low]
         lines.append(f"| {name} | {r['capture']} | {r['fp32 vs batch']:.2e} | {r['eager vs graphs']:.2e} | "
-                     f"{cells[0]} | {cells[1]} | {r['preprocessing levels']:.2f} |")
+                     f"{cells[0]} | {cells[1]} | {cells[2]} | {r['preprocessing levels']:.2f} |")
     return "\n".join(lines) + "\n"
 
 

@@ -10,17 +10,13 @@ import torch
 
 from touchanything.app.cli import build_parser, main
 from touchanything.app.sessions.bundled import sample_episodes
-from touchanything.inference.evaluation.bench import BenchPlan, agreement, bench_model, naive_latency, settings_for
-from touchanything.inference.evaluation.bench_data import latency_clip, load_episode
+from touchanything.inference.evaluation.bench import BenchPlan, bench_model, naive_latency
+from touchanything.inference.evaluation.bench_accuracy import HeldOut, agreement_sums
+from touchanything.inference.evaluation.bench_data import latency_clip
 from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown, gpu_settings
-from touchanything.inference.evaluation.bench_report import (
-    MIN_ACCURACY_SPAN,
-    frontier_steps,
-    pareto_figure,
-    pareto_front,
-    target_checks,
-    write_outputs,
-)
+from touchanything.inference.evaluation.bench_plot import MIN_ACCURACY_SPAN, frontier_steps, pareto_figure, pareto_front
+from touchanything.inference.evaluation.bench_report import target_checks, write_outputs
+from touchanything.inference.evaluation.bench_setting import settings_for
 from touchanything.inference.model.model_config import preset
 from touchanything.inference.model.touch_model import TouchAnything
 
@@ -30,20 +26,21 @@ def nano_rows():
     torch.manual_seed(0)
     model = TouchAnything(preset("nano")).eval()
     path = sample_episodes()[0]
-    episodes = [load_episode(path, 112, 40)]
     clip = latency_clip(path, 20)
-    rows, naive = bench_model("nano", model, episodes, clip, BenchPlan(True, rounds=2, per_round=5, naive_steps=3),
-                              progress=lambda message: None)
-    return rows, naive
+    result = bench_model("nano", model, HeldOut([(path, "episodes")], frames=40), clip,
+                         BenchPlan(True, rounds=2, per_round=5, naive_steps=3), progress=lambda message: None)
+    return result.rows, result.naive
 
 
 def test_rows_have_the_documented_fields(nano_rows):
     rows, naive = nano_rows
-    assert [(r["runtime"], r["precision"]) for r in rows] == [("torch", "fp32"), ("onnx", "int8")]
+    assert [row["setting"] for row in rows] == ["nano/torch-fp32/all", "nano/onnx-int8/all"]
     for row in rows:
-        for key in ("preset", "runtime", "precision", "views", "rate", "output", "p50_ms", "p99_ms", "contact_iou",
-                    "volumetric_iou", "agreement_viou", "peak_rss_mb", "device", "gpu_name", "capture"):
+        for key in ("model", "checkpoint_sha256", "setting", "trajectories", "p50_ms", "p99_ms", "volumetric_iou",
+                    "contact_iou", "runtime", "precision", "views", "rate", "output", "agreement_viou", "peak_rss_mb",
+                    "device", "gpu_name", "capture", "per_trajectory"):
             assert key in row
+        assert row["model"] == "nano" and row["trajectories"] == 1 and len(row["per_trajectory"]["volumetric_iou"]) == 1
         assert row["device"] == "cpu" and row["gpu_name"] is None
         assert row["views"] == "ego+wrist_left+wrist_right" and row["latency_frames"] == 10
         assert 0 < row["p50_ms"] <= row["p99_ms"] and row["peak_rss_mb"] > 0
@@ -59,7 +56,7 @@ def test_report_files_and_targets(nano_rows, tmp_path):
               "naive_over_streaming": {"nano": naive["ratio"]}, "naive": {"nano": naive},
               "targets": target_checks(rows, {"nano": naive}, "nano")}
     paths = write_outputs(record, tmp_path)
-    assert json.loads(paths[0].read_text())["rows"][1]["runtime"] == "onnx"
+    assert json.loads(paths[0].read_text())["rows"][1]["runtime"] == "onnx"  # valid JSON (NaN written as null)
     assert "| target |" in paths[1].read_text() and paths[2].stat().st_size > 10_000
     checks = {c["target"].split(":")[0]: c for c in record["targets"]}
     assert checks["nano ONNX int8, all views"]["met"] in (True, False)
@@ -68,19 +65,22 @@ def test_report_files_and_targets(nano_rows, tmp_path):
 
 def test_full_grid_turns_one_knob_at_a_time():
     grid = settings_for("nano", quick=False)
-    assert grid[0] == settings_for("nano", quick=True)[0] and len(set(grid)) == len(grid) == 15
+    assert grid[0] == settings_for("nano", quick=True)[0] and len(set(grid)) == len(grid) == 14
     assert {s.output for s in grid} == {"newest", "centre", "stitched"} and {s.rate for s in grid} == {1, 2, 3}
+    assert {(s.runtime, s.precision) for s in grid} == {("torch", "fp32"), ("torch", "bf16"), ("onnx", "fp32"), ("onnx", "int8")}
+    assert len({s.views for s in grid}) == 4
 
 
 def test_pareto_front_and_agreement_helpers():
     assert pareto_front([(10, 0.5), (20, 0.6), (30, 0.55), (5, 0.1)]) == [0, 1, 3]
-    a = [np.array([[0.2, np.nan], [0.4, 0.0]])]
-    assert agreement(a, a) == (1.0, 0.0)
-    assert np.isnan(agreement([np.zeros((2, 2))], [np.zeros((2, 2))])[0])  # 0/0
+    a = np.array([[0.2, np.nan], [0.4, 0.0]])
+    assert agreement_sums(a, a) == (pytest.approx(0.6), pytest.approx(0.6), 0.0)
+    assert agreement_sums(np.array([0.2, 0.5]), np.array([0.4, np.nan])) == (pytest.approx(0.2), pytest.approx(0.4),
+                                                                             pytest.approx(0.2))
 
 
 def plot_rows(points: list[tuple[float, float]]) -> list[dict]:
-    return [{"p99_ms": x, "volumetric_iou": y, "preset": "nano", "label": f"nano setting{i}"}
+    return [{"p99_ms": x, "volumetric_iou": y, "contact_iou": y, "model": "nano", "setting": f"nano/setting{i}"}
             for i, (x, y) in enumerate(points)]
 
 
@@ -138,4 +138,4 @@ def test_the_gpu_bench_runs_its_settings_on_the_cpu_eagerly():
     assert all(r["device"] == "cpu" and r["gpu_name"] is None and r["peak_gpu_mb"] is None and r["p50_ms"] > 0 for r in rows)
     assert set(naive) == {"nano fp32", "nano bf16"} and all(v > 0 for v in naive.values())
     table = gpu_markdown({"machine": "test", "device": "cpu", "rows": rows, "naive": naive})
-    assert table.count("| nano torch-") == 8 and "| nano fp32 |" in table and "eager |" in table
+    assert table.count("| nano/torch-") == 8 and "| nano fp32 |" in table and "eager |" in table

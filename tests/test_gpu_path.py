@@ -180,14 +180,48 @@ def test_a_scene_names_the_device_of_its_model(tmp_path, capsys):
 
 def test_the_exactness_benchmark_measures_the_bundled_nano_on_the_cpu():
     """benchmarks/gpu_exactness.py (whose GPU figures docs/engine.md reports), on the CPU: the streamed newest
-    frame equals the batch forward, eager equals itself, bf16 stays close, fp16 is left out."""
+    frame equals the batch forward, eager equals itself, bf16 stays close, fp16 and tf32 are left out."""
     bench = runpy.run_path(str(Path(__file__).resolve().parents[1] / "benchmarks" / "gpu_exactness.py"))
     clip = bench["first_latency_clip"]([bench["episode_paths"](SAMPLE_DIR)[0]], 18)
     row = bench["measure"](load_model(bundled_models()["nano"]), clip, torch.device("cpu"))
     assert row["capture"] == "eager (CUDA graphs need a CUDA GPU)"
     assert row["fp32 vs batch"] < TOLERANCE and row["eager vs graphs"] == 0.0
-    assert "fp16 vs fp32" not in row and 0.0 <= row["bf16 vs fp32"]["max"] < 0.05
+    assert "fp16 vs fp32" not in row and "tf32 vs fp32" not in row and 0.0 <= row["bf16 vs fp32"]["max"] < 0.05
     assert 0.0 <= row["bf16 vs fp32"]["contact agreement"] <= 1.0
     assert row["preprocessing levels"] <= 1.0 + 1e-3
     table = bench["markdown"]({"machine": "m", "device": "cpu", "episode": "e", "frames": 18, "models": {"nano": row}})
     assert "| nano | eager (CUDA graphs need a CUDA GPU) |" in table and "| n/a |" in table
+
+
+def test_tf32_is_a_gpu_precision_set_only_inside_its_context():
+    """tf32 (fp32 weights, TensorFloat-32 matrix products on a GPU): refused on the CPU; its context sets CUDA's
+    matmul and convolution mode and restores it after, also after an error; on the CPU it computes fp32 exactly;
+    the GPU bench measures it beside fp32."""
+    from touchanything.inference.evaluation.bench_gpu import gpu_settings
+    from touchanything.inference.model.torch_device import autocast
+
+    with pytest.raises(UserError, match="tf32 needs a CUDA GPU"):
+        check_precision("tf32", torch.device("cpu"))
+    with pytest.raises(UserError, match="tf32 needs a CUDA GPU"):
+        check_runtime("torch", "tf32", "cpu")
+    modes = (torch.backends.cuda.matmul, torch.backends.cudnn.conv)
+    before = [m.fp32_precision for m in modes]
+    assert before != ["tf32", "tf32"]
+    with autocast(torch.device("cpu"), "tf32"):
+        assert [m.fp32_precision for m in modes] == ["tf32", "tf32"]
+    assert [m.fp32_precision for m in modes] == before
+    with pytest.raises(ZeroDivisionError), autocast(torch.device("cpu"), "tf32"):
+        raise ZeroDivisionError
+    assert [m.fp32_precision for m in modes] == before
+    with autocast(torch.device("cpu"), "fp32"):
+        assert [m.fp32_precision for m in modes] == before  # fp32 leaves the mode alone
+    torch.manual_seed(0)
+    model = TouchAnything(preset("nano")).eval()
+    encoder, _ = model_halves(model)
+    images, ids = torch.rand(3, 3, 96, 96), torch.arange(3)
+    with torch.no_grad():
+        plain = encoder(images, ids)
+        with autocast(torch.device("cpu"), "tf32"):
+            assert torch.equal(encoder(images, ids), plain)
+    assert "tf32" in {s.precision for s in gpu_settings("paper", torch.device("cuda"))}
+    assert "tf32" not in {s.precision for s in gpu_settings("paper", torch.device("cpu"))}

@@ -29,10 +29,12 @@ from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.inference.engine.streaming_engine import StreamingEngine
-from touchanything.inference.evaluation.bench import BenchPlan, BenchSetting, bench_model, replay_outputs
+from touchanything.inference.evaluation.bench import BenchPlan, bench_model
+from touchanything.inference.evaluation.bench_accuracy import HeldOut, replay_outputs
 from touchanything.inference.evaluation.bench_data import latency_clip, load_episode
 from touchanything.inference.evaluation.bench_report import markdown as bench_markdown
 from touchanything.inference.evaluation.bench_report import target_checks, write_outputs
+from touchanything.inference.evaluation.bench_setting import BenchSetting
 from touchanything.inference.evaluation.evaluation import EvaluationResult, evaluate, vision_share_summary
 from touchanything.inference.evaluation.metrics import ALL_METRICS, COUNT_METRICS
 from touchanything.inference.evaluation.trajectory_prediction import predict_trajectory
@@ -154,11 +156,12 @@ def test_bench_pose_only_rows_beside_the_real_ones(vision_task, tmp_path):
     data, checkpoint, _ = vision_task
     path = read_split(data / "split.json")["test_seen"][0]
     plan = BenchPlan(True, rounds=1, per_round=3, naive_steps=2, pose_only=True)
-    rows, naive = bench_model("vision", load_model(checkpoint), [load_episode(path, 112, None)], latency_clip(path, 10),
-                              plan, progress=lambda message: None)
+    result = bench_model("vision", load_model(checkpoint), HeldOut([(path, "test_seen")]), latency_clip(path, 10),
+                         plan, progress=lambda message: None)
+    rows, naive = result.rows, result.naive
     assert [(r["runtime"], r["blank"]) for r in rows] == [("torch", False), ("torch", True), ("onnx", False), ("onnx", True)]
     for real, blank in (rows[0:2], rows[2:4]):
-        assert blank["label"] == real["label"] + " pose only" and blank["p50_ms"] is None and blank["latency_frames"] == 0
+        assert blank["setting"] == real["setting"] + "/pose-only" and blank["p50_ms"] is None and blank["latency_frames"] == 0
         assert real["p50_ms"] > 0 and blank["throughput_fps"] > 0
         assert real["contact_iou"] > blank["contact_iou"] + 0.15, (real["metrics"], blank["metrics"])
         assert blank["vision_share"] == vision_shares(real["metrics"], blank["metrics"])
@@ -169,7 +172,7 @@ def test_bench_pose_only_rows_beside_the_real_ones(vision_task, tmp_path):
     assert not any("pose only" in check["target"] for check in record["targets"])
     written = write_outputs(record, tmp_path)
     table = bench_markdown(record)
-    assert "## Share carried by vision" in table and "| vision torch-fp32 ego+left+right | " in table
+    assert "## Share carried by vision" in table and "| vision/torch-fp32/all | " in table
     assert written[1].read_text() == table and written[2].stat().st_size > 10_000
 
 

@@ -1,7 +1,7 @@
 """One frame of the replay comparison video: the cameras (the head camera with the hand skeletons and the
 shown pressure on their joints), ground truth | prediction | error maps, a bottom strip (rolling metrics,
-engine time per frame, contact lamps) and a footer with the frame, where the pose comes from, the prediction's
-status and the metrics."""
+engine time per frame, contact lamps) and a footer with the engine setting, the frame, where the pose comes from,
+the prediction's status and the metrics."""
 from __future__ import annotations
 
 import math
@@ -24,8 +24,11 @@ def metric_text(value: float) -> str:
     return "n/a" if math.isnan(value) else f"{value:.3f}"
 
 
-def footer_text(snapshot: Snapshot, total: int, prediction: Prediction | None, metrics: RunningMetrics | None) -> str:
-    parts = [f"Frame {snapshot.frame_index:04d}/{total}", pose_label(snapshot)]
+def footer_text(snapshot: Snapshot, total: int, prediction: Prediction | None, metrics: RunningMetrics | None,
+                setting: str = "") -> str:
+    """`setting` (the engine setting's name, `bench_setting`) first when given."""
+    parts = [setting] if setting else []
+    parts += [f"Frame {snapshot.frame_index:04d}/{total}", pose_label(snapshot)]
     if prediction is not None:
         parts.append(f"{prediction.status} | {'+'.join(prediction.views_used)} | {prediction.timings_ms.get('total', 0):.0f} ms")
     if metrics is not None:
@@ -38,11 +41,13 @@ def footer_text(snapshot: Snapshot, total: int, prediction: Prediction | None, m
 class ReplayFrameRenderer:
     """Renders the frames of one episode, in order: keeps the recent per-frame series the bottom strip plots.
     `hand3d`: add the panel of the pressure painted on the 3D hands (`viz.hand3d_panel`); `caption`: lines
-    under the predicted maps (what the model is)."""
+    under the predicted maps (what the model is); `setting`: the engine setting's name, first in the footer."""
 
-    def __init__(self, total_frames: int, bend: np.ndarray, hand3d: bool = False, caption: tuple[str, ...] = ()) -> None:
+    def __init__(self, total_frames: int, bend: np.ndarray, hand3d: bool = False, caption: tuple[str, ...] = (),
+                 setting: str = "") -> None:
         self.total_frames = total_frames
         self.caption = caption
+        self.setting = setting
         self.bend = bend
         self.hand3d = hand3d
         self.viou: list[float] = []
@@ -57,7 +62,7 @@ class ReplayFrameRenderer:
         images = dict(snapshot.images)
         if "ego" in images:
             images["ego"] = draw_hands(images["ego"], snapshot.joints, snapshot.joints_valid, shown)
-        footer = footer_text(snapshot, self.total_frames, latest, metrics)
+        footer = footer_text(snapshot, self.total_frames, latest, metrics, self.setting)
         hands = hand3d_panel(snapshot.joints, snapshot.joints_valid, truth, shown) if self.hand3d else None
         maps = None if shown is None or latest is None else unposed_as_nan(shown, latest.hands_predicted)
         return comparison_frame(images, truth, maps, footer, self._strip(shown, truth), hands, self.caption)

@@ -1,8 +1,8 @@
-"""`touchanything bench`: the speed/accuracy table of every engine setting (Markdown, JSON, Pareto plot)."""
+"""`touchanything bench`: the speed/accuracy atlas of every engine setting (Markdown, JSON, Pareto plot), and
+with `--budget-ms` the most accurate setting that fits a latency budget on this machine."""
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
@@ -12,20 +12,26 @@ from pathlib import Path
 import onnxruntime
 import torch
 
-from touchanything.app.sessions.bundled import MODELS_DIR, OUTPUT_DIR, SAMPLE_DIR, bundled_models
-from touchanything.app.sessions.engine_choice import add_device_argument
+from touchanything.app.sessions.bundled import ATLAS_FILE, MODELS_DIR, OUTPUT_DIR, SAMPLE_DIR, bundled_models
+from touchanything.app.sessions.engine_choice import DEFAULT_MODEL, add_device_argument
+from touchanything.app.sessions.setting_choice import budget_request
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import check_report_folder, write_text
+from touchanything.inference.evaluation.atlas import file_sha256
 from touchanything.inference.evaluation.bench import BenchPlan, bench_model
-from touchanything.inference.evaluation.bench_data import episode_paths, first_latency_clip, load_episodes
+from touchanything.inference.evaluation.bench_accuracy import HeldOut
+from touchanything.inference.evaluation.bench_data import first_latency_clip, held_out_paths
 from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown
+from touchanything.inference.evaluation.bench_intervals import add_intervals, align_rows, paired_comparisons
 from touchanything.inference.evaluation.bench_report import (
     GPU_OUTPUT_FILES,
     OUTPUT_FILES,
     markdown,
+    record_json,
     target_checks,
     write_outputs,
 )
+from touchanything.inference.evaluation.bootstrap import FEW_TRAJECTORIES
 from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.model_config import preset
 from touchanything.inference.model.models import TactileModel
@@ -36,32 +42,47 @@ LATENCY_CLIP_FRAMES = 60
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
-    parser = commands.add_parser("bench", help="measure latency, memory and accuracy of every engine setting")
+    parser = commands.add_parser("bench", help="measure latency, memory and accuracy of every engine setting (the "
+                                               "speed/accuracy atlas), or pick the setting that fits a latency budget")
     parser.add_argument("--quick", action="store_true",
-                        help="smallest bundled model (torch fp32, ONNX int8) and the paper preset's cache gain")
+                        help=f"the default model ({DEFAULT_MODEL}: torch fp32, ONNX int8) and the paper preset's cache "
+                             "gain; with --budget-ms, a shorter latency probe")
     parser.add_argument("--out", type=Path, default=OUTPUT_DIR / "bench",
                         help=f"folder for engine.{{json,md}} and the plot (default {OUTPUT_DIR / 'bench'} in the working "
-                             "directory; the committed results are docs/bench)")
+                             "directory; the committed atlas is docs/bench)")
     parser.add_argument("--data", type=Path, default=SAMPLE_DIR,
-                        help="held-out episodes with ground truth (default: the bundled sample)")
+                        help="held-out trajectories with ground truth: a dataset root with a split.json (its test_seen and "
+                             "test_unseen lists, or --splits), or a folder of episodes (default: the bundled sample)")
+    parser.add_argument("--splits", nargs="+", metavar="SPLIT",
+                        help="with a dataset root: the split lists to measure on, each kept apart (default test_seen "
+                             "test_unseen)")
     parser.add_argument("--models", type=Path, nargs="+",
                         help="model folders holding best_model.pth (default: every bundled model)")
     parser.add_argument("--frames", type=int, help="accuracy on the first N frames of each episode (default: every frame; 150 with "
                                                             "--quick)")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="replay the held-out trajectories for accuracy in N processes (latency is always measured in "
+                             "one; default 1)")
     parser.add_argument("--pose-only-baseline", action="store_true",
                         help="after each setting, its accuracy with every frame black (pose only) and the share of "
                              "each metric that vision carries")
+    parser.add_argument("--budget-ms", type=float, metavar="MS",
+                        help="instead of the atlas: probe the settings' p99 latency here and print the most accurate one "
+                             "(accuracy from --atlas) whose p99 fits MS, with the command that runs it; writes nothing")
+    parser.add_argument("--atlas", type=Path, default=ATLAS_FILE,
+                        help="with --budget-ms: the atlas to take accuracy from (default: the committed docs/bench/engine.json)")
     add_device_argument(parser)
     parser.set_defaults(run=run)
 
 
-def load_models(folders: list[Path] | None) -> dict[str, TactileModel]:
-    """name → model for each folder (default: every bundled model), smallest first by parameter count."""
+def load_models(folders: list[Path] | None) -> dict[str, tuple[TactileModel, Path]]:
+    """name → (model, checkpoint) for each folder (default: every bundled model), smallest first by parameter
+    count."""
     folders = folders or sorted(checkpoint.parent for checkpoint in bundled_models().values())
     if not folders:
         raise UserError(f"{MODELS_DIR}: no bundled models; pass --models")
-    models = {Path(f).name: load_model(Path(f) / "best_model.pth") for f in folders}
-    return dict(sorted(models.items(), key=lambda item: sum(p.numel() for p in item[1].parameters())))
+    models = {Path(f).name: (load_model(Path(f) / "best_model.pth"), Path(f) / "best_model.pth") for f in folders}
+    return dict(sorted(models.items(), key=lambda item: sum(p.numel() for p in item[1][0].parameters())))
 
 
 def machine() -> str:
@@ -71,7 +92,7 @@ def machine() -> str:
 
 def run_on_gpu(args: argparse.Namespace, device: torch.device) -> int:
     """The GPU settings (`bench_gpu`) into OUT/engine_gpu.{json,md}."""
-    paths = episode_paths(args.data)
+    paths = [path for path, _ in held_out_paths(args.data, args.splits)]
     clip = first_latency_clip(paths, LATENCY_CLIP_FRAMES)
     started = time.perf_counter()
     rounds, per_round, naive_steps = (2, 10, 10) if args.quick else (5, 30, 30)
@@ -80,15 +101,27 @@ def run_on_gpu(args: argparse.Namespace, device: torch.device) -> int:
     record = {"machine": machine(), "device": device_label(device), "quick": args.quick, "rows": rows, "naive": naive,
               "seconds": time.perf_counter() - started}
     json_path, markdown_path = (args.out / name for name in GPU_OUTPUT_FILES)
-    write_text(json_path, json.dumps(record, indent=1) + "\n")
+    write_text(json_path, record_json(record))
     write_text(markdown_path, gpu_markdown(record))
     print(gpu_markdown(record))
     print(f"written: {json_path}, {markdown_path}")
     return 0
 
 
+def check_arguments(args: argparse.Namespace) -> int | None:
+    """The frames per episode (None: all); UserError for a bad number."""
+    if args.workers < 1:
+        raise UserError(f"--workers must be at least 1, got {args.workers}")
+    frames = args.frames if args.frames is not None else (150 if args.quick else None)
+    if frames is not None and frames < 15:
+        raise UserError(f"--frames must be at least 15 (one 8-frame window), got {frames}")
+    return frames
+
+
 def run(args: argparse.Namespace) -> int:
     device = resolve_device(args.device)
+    if args.budget_ms is not None:
+        return budget(args)
     check_report_folder(args.out, GPU_OUTPUT_FILES if device.type == "cuda" else OUTPUT_FILES,
                         (args.data, *(args.models or ())))
     if device.type == "cuda":
@@ -96,39 +129,55 @@ def run(args: argparse.Namespace) -> int:
             raise UserError("--pose-only-baseline needs accuracy, which the GPU bench (latency only) does not measure; "
                             "use --device cpu")
         return run_on_gpu(args, device)
-    frames = args.frames if args.frames is not None else (150 if args.quick else None)
-    if frames is not None and frames < 15:
-        raise UserError(f"--frames must be at least 15 (one 8-frame window), got {frames}")
-    paths = episode_paths(args.data)
+    frames = check_arguments(args)
+    pairs = held_out_paths(args.data, args.splits)
+    if len(pairs) < FEW_TRAJECTORIES:
+        print(f"warning: only {len(pairs)} held-out trajectories: the 95 % intervals are wide (use a dataset root with "
+              f"at least {FEW_TRAJECTORIES}, e.g. data/heldout from scripts/make_datasets.sh)", file=sys.stderr)
     models = load_models(args.models)
     if args.quick:
-        models = dict(list(models.items())[:1])
-    clip = first_latency_clip(paths, LATENCY_CLIP_FRAMES)
+        name = DEFAULT_MODEL if DEFAULT_MODEL in models else next(iter(models))
+        models = {name: models[name]}
+    return atlas(args, models, HeldOut(pairs, frames, args.workers))
+
+
+def atlas(args: argparse.Namespace, models: dict[str, tuple[TactileModel, Path]], held_out: HeldOut) -> int:
+    clip = first_latency_clip([path for path, _ in held_out.pairs], LATENCY_CLIP_FRAMES)
     started = time.perf_counter()
-    rows, naive = [], {}
 
     def progress(message: str) -> None:
         print(f"[{time.perf_counter() - started:6.0f} s] {message}", file=sys.stderr, flush=True)
 
-    failures: dict[str, None] = {}
-    for name, model in models.items():
-        episodes, failed = load_episodes(paths, model.config.image_size, frames)
-        for line in failed:
+    rows, naive, trajectories, failures = [], {}, [], {}
+    for name, (model, checkpoint) in models.items():
+        plan = BenchPlan(args.quick, rounds=4 if args.quick else 20, per_round=10, naive_steps=10 if args.quick else 30,
+                         pose_only=args.pose_only_baseline)
+        result = bench_model(name, model, held_out, clip, plan, progress, checkpoint, file_sha256(checkpoint))
+        for line in result.failures:
             if line not in failures:
                 progress(f"skipped: {line}")
             failures[line] = None
-        plan = BenchPlan(args.quick, rounds=4 if args.quick else 20, per_round=10, naive_steps=10 if args.quick else 30,
-                         pose_only=args.pose_only_baseline)
-        model_rows, naive[name] = bench_model(name, model, episodes, clip, plan, progress)
-        rows += model_rows
+        trajectories += [t for t in result.trajectories if t not in trajectories]
+        rows.append((result.rows, result.trajectories))
+        naive[name] = result.naive
+    if not trajectories:
+        raise UserError(f"no held-out trajectory could be loaded for the accuracy benchmark ({next(iter(failures))})")
+    for model_rows, own in rows:
+        align_rows(model_rows, own, trajectories)
+    rows = [row for model_rows, _ in rows for row in model_rows]
     torch.manual_seed(0)
     paper_plan = BenchPlan(args.quick, rounds=2, per_round=2, naive_steps=2 if args.quick else 4)
-    paper_rows, naive["paper"] = bench_model("paper", TouchAnything(preset("paper")).eval(), None, clip, paper_plan, progress)
-    rows += paper_rows
+    paper = bench_model("paper", TouchAnything(preset("paper")).eval(), None, clip, paper_plan, progress)
+    rows += paper.rows
+    naive["paper"] = paper.naive
+    add_intervals(rows, trajectories)
+    base = DEFAULT_MODEL if DEFAULT_MODEL in models else next(iter(models))
     record = {"machine": machine(), "quick": args.quick, "accuracy_data": str(args.data),
-              "episodes": [str(p) for p in paths], "failed": list(failures), "frames_per_episode": frames,
-              "seconds": time.perf_counter() - started,
-              "rows": rows, "naive_over_streaming": {k: v["ratio"] for k, v in naive.items()}, "naive": naive,
+              "splits": list(dict.fromkeys(t["split"] for t in trajectories)), "trajectories": trajectories,
+              "failed": list(failures), "frames_per_episode": held_out.frames, "workers": held_out.workers,
+              "seconds": time.perf_counter() - started, "base_model": base,
+              "rows": rows, "comparisons": paired_comparisons(rows, trajectories, base),
+              "naive_over_streaming": {k: v["ratio"] for k, v in naive.items()}, "naive": naive,
               "targets": target_checks(rows, naive, next(iter(models)))}
     written = write_outputs(record, args.out)
     print(markdown(record))
@@ -136,3 +185,13 @@ def run(args: argparse.Namespace) -> int:
     for line in failures:
         print(f"touchanything bench: failed: {line}", file=sys.stderr)
     return 1 if failures else 0
+
+
+def budget(args: argparse.Namespace) -> int:
+    """`--budget-ms`: the choice (`setting_choice`) and the command that runs it."""
+    choice = budget_request(args.atlas, args.budget_ms, args.models).pick(args.device, args.quick)
+    print(choice.line)
+    atlas = "" if args.atlas == ATLAS_FILE else f" --atlas {args.atlas}"
+    print(f"run it:  touchanything demo --setting {choice.row.name}{atlas}   (or replay EPISODE / live --scene FILE with "
+          "the same --setting)")
+    return 0

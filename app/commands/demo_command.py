@@ -10,6 +10,7 @@ from touchanything.app.sessions.bundled import OUTPUT_DIR, SAMPLE_DIR, sample_ep
 from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint
 from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
+from touchanything.app.sessions.setting_choice import add_setting_arguments, picked_setting, setting_request
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import add_overwrite_argument
 from touchanything.devices.snapshot import VIEW_NAMES
@@ -28,6 +29,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help=f"video for --headless (default {DEMO_VIDEO} in the working directory)")
     parser.add_argument("--hand3d", action="store_true", help="add the pressure painted on 3D hands (measured | "
                                                               "predicted) to the comparison video (default: off)")
+    add_setting_arguments(parser)
     add_device_argument(parser)
     add_rerun_arguments(parser)
     add_overwrite_argument(parser, "--out (a file other than an earlier comparison video) or --rerun")
@@ -41,17 +43,21 @@ def run(args: argparse.Namespace) -> int:
         if not samples:
             raise UserError(f"{SAMPLE_DIR}: no bundled sample episode found; pass an episode path")
         path = samples[0]
-    choice = ModelChoice(default_checkpoint(), device=args.device)
-    inputs = (path, choice.checkpoint)
+    request = setting_request(args)
+    inputs = (path, *(request.inputs if request else (default_checkpoint(),)))
     rerun = rerun_target(args, inputs)
     problem = None if args.headless else display_problem()
     if problem:
         print(f"no dashboard: {problem}. Writing the comparison video instead.")
     if args.headless or problem:
         check_video_output(args.out, inputs, args.overwrite)
-        replay_to_video(path, choice, VIEW_NAMES, args.out, args.hand3d, rerun)
+    picked = picked_setting(request, args.device)
+    choice = picked.model_choice(args.device) if picked else ModelChoice(default_checkpoint(), device=args.device)
+    views = picked.row.setting.views if picked else VIEW_NAMES
+    if args.headless or problem:
+        replay_to_video(path, choice, views, args.out, args.hand3d, rerun)
         print(f"watch it with any video player: {args.out}")
     else:
-        stats = replay_in_dashboard(path, choice, VIEW_NAMES, rerun=rerun, loop=True).stats
+        stats = replay_in_dashboard(path, choice, views, rerun=rerun, loop=True).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

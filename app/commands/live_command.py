@@ -20,6 +20,7 @@ from touchanything.app.sessions.rerun_output import (
     session_properties,
 )
 from touchanything.app.sessions.rerun_sink import RerunSink, seconds_since_first
+from touchanything.app.sessions.setting_choice import PickedSetting, add_setting_arguments, picked_setting, setting_request
 from touchanything.devices.errors import require_finite_positive
 from touchanything.devices.output_safety import add_overwrite_argument
 from touchanything.viz.hand_projection import pose_label
@@ -32,16 +33,17 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--scene", type=Path, required=True, help="scene file (TOML), e.g. scenes/sim.toml")
     parser.add_argument("--headless", action="store_true", help="no window: run for --seconds and print status")
     parser.add_argument("--seconds", type=float, default=10.0, help="how long --headless runs (default 10)")
+    add_setting_arguments(parser)
     add_device_argument(parser, default=None)
     add_rerun_arguments(parser)
     add_overwrite_argument(parser, "--rerun")
     parser.set_defaults(run=run)
 
 
-def open_live_session(scene_path: Path, device: str | None = None):
+def open_live_session(scene_path: Path, device: str | None = None, picked: PickedSetting | None = None):
     """The scene's rig and model as a LiveSession (not started), the model on `device` when given (else the
-    scene's); a model that fails to load leaves the session without predictions, with the reason in its
-    message."""
+    scene's), the `picked` setting's model, tier and views instead of the scene's when given; a model that fails
+    to load leaves the session without predictions, with the reason in its message."""
     from touchanything.app.sessions.engine_choice import build_engine
     from touchanything.app.sessions.live_session import LiveSession
     from touchanything.app.sessions.scene import read_scene
@@ -51,12 +53,17 @@ def open_live_session(scene_path: Path, device: str | None = None):
 
     scene = read_scene(scene_path)
     choice = scene.model if device is None else dataclasses.replace(scene.model, device=device)
+    if picked is not None:
+        choice = picked.model_choice(choice.device)
     try:
         engine, message = build_engine(choice, VIEW_NAMES), ""
     except UserError as exc:
         engine, message = None, f"no prediction: {exc}"
         print(message)
-    return LiveSession(LiveRig(scene), engine, choice, message)
+    session = LiveSession(LiveRig(scene), engine, choice, message)
+    if picked is not None:
+        session.set_views(picked.row.setting.views)
+    return session
 
 
 def run_headless(session, seconds: float) -> dict:
@@ -95,8 +102,9 @@ def run(args: argparse.Namespace) -> int:
         from touchanything.devices.errors import UserError
 
         raise UserError(f"cannot open the dashboard: {problem}; use --headless")
-    target = rerun_target(args, (args.scene,), LIVE_IMAGE_SCALE)
-    session = open_live_session(args.scene, args.device)
+    request = setting_request(args)
+    target = rerun_target(args, (args.scene, *(request.inputs if request else ())), LIVE_IMAGE_SCALE)
+    session = open_live_session(args.scene, args.device, picked_setting(request, args.device))
     engine = session.live and session.live.engine
     recording = target and open_recording(target, f"live {args.scene.stem}", session_properties(session.choice, engine))
     if recording is not None:

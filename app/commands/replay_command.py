@@ -10,6 +10,7 @@ from touchanything.app.sessions.bundled import OUTPUT_DIR
 from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint, view_set_argument
 from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
+from touchanything.app.sessions.setting_choice import PickedSetting, add_setting_arguments, picked_setting, setting_request
 from touchanything.devices.output_safety import add_overwrite_argument
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.view_sets import VIEW_HELP
@@ -18,16 +19,17 @@ from touchanything.viz.display import display_problem
 
 
 def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--checkpoint", type=Path, default=default_checkpoint(),
-                        help="model checkpoint (default: the bundled nano model)")
+    """The model, runtime, views and device options, and `--setting` (which decides all but the device)."""
+    parser.add_argument("--checkpoint", type=Path, help="model checkpoint (default: the bundled nano model)")
     parser.add_argument("--config", type=Path, help="config.yaml (default: beside the checkpoint)")
-    parser.add_argument("--views", nargs="+", default=[VIEW_NAMES], type=view_set_argument, metavar="VIEWS",
+    parser.add_argument("--views", nargs="+", type=view_set_argument, metavar="VIEWS",
                         help=f"views the model uses, one or more ({VIEW_HELP}; ego is required for a prediction; "
                              "default all)")
-    parser.add_argument("--runtime", default="torch", choices=list(RUNTIMES),
+    parser.add_argument("--runtime", choices=list(RUNTIMES),
                         help="torch, or onnx (ONNX Runtime on the CPU; the model is exported on first use into the user "
                              "cache; default torch)")
-    parser.add_argument("--precision", default="fp32", help="torch: fp32, bf16 (fp16 on GPU); onnx: fp32, int8 (default fp32)")
+    parser.add_argument("--precision", help="torch: fp32, bf16 (fp16, tf32 on a GPU); onnx: fp32, int8 (default fp32)")
+    add_setting_arguments(parser)
     add_device_argument(parser)
 
 
@@ -47,13 +49,19 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def model_choice(args: argparse.Namespace) -> ModelChoice:
-    return ModelChoice(args.checkpoint, args.config, args.runtime, args.precision, args.device)
+def model_choice(args: argparse.Namespace, picked: PickedSetting | None) -> ModelChoice:
+    """The `--setting`'s model and tier, else the options' (the bundled nano, torch fp32 by default)."""
+    if picked is not None:
+        return picked.model_choice(args.device)
+    return ModelChoice(args.checkpoint or default_checkpoint(), args.config, args.runtime or "torch",
+                       args.precision or "fp32", args.device)
 
 
-def selected_views(args: argparse.Namespace) -> tuple[str, ...]:
-    """The union of the `--views` values, in the official order."""
-    return tuple(v for v in VIEW_NAMES if any(v in views for views in args.views))
+def selected_views(args: argparse.Namespace, picked: PickedSetting | None) -> tuple[str, ...]:
+    """The `--setting`'s views, else the union of the `--views` values (default all), in the official order."""
+    if picked is not None:
+        return picked.row.setting.views
+    return tuple(v for v in VIEW_NAMES if any(v in views for views in args.views or [VIEW_NAMES]))
 
 
 def default_video(path: Path) -> Path:
@@ -63,18 +71,21 @@ def default_video(path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    inputs = (args.episode, args.checkpoint, args.config)
+    request = setting_request(args)
+    inputs = (args.episode, *(request.inputs if request else (args.checkpoint or default_checkpoint(), args.config)))
     rerun = rerun_target(args, inputs)
     headless = args.headless or args.out is not None
     out = args.out or default_video(args.episode)
     if headless:
         check_video_output(out, inputs, args.overwrite)
+    picked = picked_setting(request, args.device)
+    choice, views = model_choice(args, picked), selected_views(args, picked)
     if not headless and rerun is not None and (problem := display_problem()):
         print(f"no dashboard: {problem}. Writing the Rerun recording only (--headless: the comparison video too).")
-        replay_to_video(args.episode, model_choice(args), selected_views(args), None, rerun=rerun)
+        replay_to_video(args.episode, choice, views, None, rerun=rerun)
     elif headless:
-        replay_to_video(args.episode, model_choice(args), selected_views(args), out, args.hand3d, rerun)
+        replay_to_video(args.episode, choice, views, out, args.hand3d, rerun)
     else:
-        stats = replay_in_dashboard(args.episode, model_choice(args), selected_views(args), rerun=rerun).stats
+        stats = replay_in_dashboard(args.episode, choice, views, rerun=rerun).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

@@ -1,5 +1,6 @@
-"""What ships with the checkout: the bundled models under `models/` and the sample episodes under
-`recordings/sample/`; and the default output folder."""
+"""What ships with the checkout: the bundled models under `models/`, the sample episodes under
+`recordings/sample/` and the speed/accuracy atlas of the bundled models (`docs/bench/engine.json`); and the
+default output folder."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,6 +10,8 @@ from touchanything.devices.episodes.episode_loader import find_raw_episodes
 ROOT = Path(__file__).resolve().parents[2]
 MODELS_DIR = ROOT / "models"
 SAMPLE_DIR = ROOT / "recordings" / "sample"
+ATLAS_FILE = ROOT / "docs" / "bench" / "engine.json"
+"""The committed atlas: every bundled model's settings on the held-out set (`touchanything bench`)."""
 OUTPUT_DIR = Path("recordings")
 """Where every command, and the dashboard's Record and Screenshot buttons, write when not told where:
 `recordings/` in the working directory (from the checkout, the git-ignored folder beside the sample)."""

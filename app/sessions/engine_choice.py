@@ -12,27 +12,30 @@ from touchanything.app.sessions.bundled import MODELS_DIR, bundled_models
 from touchanything.devices.view_sets import parse_view_set
 from touchanything.inference.engine.engine_config import EngineConfig
 from touchanything.inference.engine.streaming_engine import StreamingEngine
+from touchanything.inference.evaluation.bench_setting import BenchSetting
 from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.model_card import read_card
 from touchanything.inference.model.torch_device import DEVICE_HELP, device_label
 
 DEFAULT_MODEL = "nano"
 CPU_TIERS = ("torch fp32", "torch bf16", "onnx fp32", "onnx int8")
-"""Runtime + precision pairs that run on a CPU (fp16 needs a GPU)."""
-GPU_TIERS = ("torch fp32", "torch bf16", "torch fp16")
+"""Runtime + precision pairs that run on a CPU (fp16 and tf32 need a GPU)."""
+GPU_TIERS = ("torch fp32", "torch tf32", "torch bf16", "torch fp16")
 """Runtime + precision pairs that run on a CUDA GPU (ONNX Runtime here is the CPU build)."""
 
 
 @dataclass(frozen=True)
 class ModelChoice:
-    """A checkpoint (config.yaml beside it unless `config` is given), its runtime tier and the `--device`
-    setting (auto, cpu, cuda, cuda:N)."""
+    """A checkpoint (config.yaml beside it unless `config` is given), its runtime tier, the `--device` setting
+    (auto, cpu, cuda, cuda:N), and the engine's prediction rate (every k-th frame) and output position."""
 
     checkpoint: Path
     config: Path | None = None
     runtime: str = "torch"
     precision: str = "fp32"
     device: str = "auto"
+    every: int = 1
+    output: str = "newest"
 
     @property
     def tier(self) -> str:
@@ -80,6 +83,17 @@ def model_name(choice: ModelChoice) -> str:
     return bundled.get(choice.checkpoint.resolve(), str(choice.checkpoint))
 
 
+def model_key(choice: ModelChoice) -> str:
+    """The model's short name: the bundled model's folder name, else the checkpoint's folder name."""
+    bundled = {path.resolve(): name for name, path in bundled_models().items()}
+    return bundled.get(choice.checkpoint.resolve(), choice.checkpoint.resolve().parent.name)
+
+
+def setting_name(choice: ModelChoice, views: tuple[str, ...]) -> str:
+    """The engine setting's name in the atlas's spelling (`nano/onnx-int8/all`), whatever chose it."""
+    return BenchSetting(model_key(choice), choice.runtime, choice.precision, views, choice.every, choice.output).name()
+
+
 def model_label(choice: ModelChoice, engine: StreamingEngine | None = None) -> str:
     """The model's name with the tier and, for a built engine, the device it runs on
     ("nano — trained on simulated data; held-out V-IoU 0.55 seen / 0.53 unseen objects (torch fp32 on cpu)")."""
@@ -100,5 +114,6 @@ def illustrative_note(choice: ModelChoice, camera_pose: bool) -> str:
 def build_engine(choice: ModelChoice, views: tuple[str, ...]) -> StreamingEngine:
     """Load the checkpoint and build its engine (an ONNX tier exports its graphs on first use);
     a bad checkpoint, config or tier raises UserError."""
-    config = EngineConfig(runtime=choice.runtime, precision=choice.precision, device=choice.device, views=views).check()
+    config = EngineConfig(runtime=choice.runtime, precision=choice.precision, device=choice.device, views=views,
+                          every=choice.every, output=choice.output).check()
     return StreamingEngine(load_model(choice.checkpoint, choice.config), config)

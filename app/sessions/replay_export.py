@@ -151,15 +151,15 @@ def _log_frame(rerun: RerunRecording, episode: Episode, snapshot: Snapshot, trut
 
 def export_replay(source: ReplaySource, engine: StreamingEngine, out: Path | None,
                   progress: Callable[[int], None] = lambda frame: None, hand3d: bool = False,
-                  rerun: RerunRecording | None = None, caption: tuple[str, ...] = ()) -> ReplaySummary:
+                  rerun: RerunRecording | None = None, caption: tuple[str, ...] = (), setting: str = "") -> ReplaySummary:
     """Write the comparison video of the source's whole episode to `out` (H.264 MP4; None: no video) with the
-    3D hands panel when `hand3d`, `caption` (what the model is, a warning) under the predicted maps, and the
-    Rerun recording when given; return the summary."""
+    3D hands panel when `hand3d`, `caption` (what the model is, a warning) under the predicted maps, `setting`
+    (the engine setting's name) in the footer, and the Rerun recording when given; return the summary."""
     summary = ReplaySummary()
     if out is None:
         for _ in replay_frames(source, engine, summary, progress, rerun=rerun):
             pass
         return summary
-    renderer = ReplayFrameRenderer(source.episode.num_frames, TactileLayout.default().bend, hand3d, caption)
+    renderer = ReplayFrameRenderer(source.episode.num_frames, TactileLayout.default().bend, hand3d, caption, setting)
     write_comparison_video(out, replay_frames(source, engine, summary, progress, renderer, rerun))
     return summary

@@ -8,7 +8,14 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, illustrative_note, model_label, model_name
+from touchanything.app.sessions.engine_choice import (
+    ModelChoice,
+    build_engine,
+    illustrative_note,
+    model_label,
+    model_name,
+    setting_name,
+)
 from touchanything.app.sessions.episode_summary import episode_lines
 from touchanything.app.sessions.replay_export import ReplaySummary, export_replay, log_episode_videos
 from touchanything.app.sessions.replay_session import ReplaySession
@@ -41,12 +48,14 @@ def replay_to_video(path: Path, choice: ModelChoice, views: tuple[str, ...], out
         recording = rerun and open_recording(rerun, f"replay {episode_name(episode)}", session_properties(choice, engine, episode))
         try:
             with tqdm(total=episode.num_frames, unit="frame", desc="replay") as bar:
-                summary = export_replay(source, engine, out, lambda frame: bar.update(1), hand3d, recording, caption)
+                summary = export_replay(source, engine, out, lambda frame: bar.update(1), hand3d, recording, caption,
+                                        setting_name(choice, views))
         except BaseException:
             if recording is not None:
                 recording.close()  # what was logged stays readable
             raise
     print(f"model     {model_label(choice, engine)}, {engine.runtime.capture}")
+    print(f"setting   {setting_name(choice, views)}")
     if len(caption) > 1:
         print(f"note      {caption[1]}")
     print("\n".join(summary.lines()))

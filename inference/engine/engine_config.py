@@ -15,8 +15,8 @@ from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.inference.model.torch_device import check_precision, resolve_device
 
-RUNTIMES = {"torch": ("fp32", "bf16", "fp16"), "onnx": ("fp32", "int8")}
-"""Runtime → the precisions it offers."""
+RUNTIMES = {"torch": ("fp32", "bf16", "fp16", "tf32"), "onnx": ("fp32", "int8")}
+"""Runtime → the precisions it offers (torch fp16 and tf32 on a CUDA GPU only)."""
 OUTPUTS = ("newest", "centre", "stitched")
 INVALID_HANDS = ("skip", "official")
 
@@ -49,7 +49,7 @@ def check_runtime(runtime: str, precision: str, device: str = "auto") -> torch.d
 
 @dataclass(frozen=True)
 class EngineConfig:
-    """runtime/precision: torch fp32|bf16|fp16 (fp16 on GPU only), onnx fp32|int8. device: `auto` (the first
+    """runtime/precision: torch fp32|bf16|fp16|tf32 (fp16 and tf32 on GPU only), onnx fp32|int8. device: `auto` (the first
         CUDA GPU when there is one, else the CPU; ONNX: the CPU), `cpu`, `cuda`, `cuda:N`.
     onnx_dir: graphs from `touchanything export-onnx` (None: exported on first use into the user cache).
     views: the views the engine may use (a subset of the present ones is used per frame).

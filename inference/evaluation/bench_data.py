@@ -1,5 +1,6 @@
-"""Benchmark inputs: held-out episodes decoded once (frames resized to the model input), a full-resolution
-clip for latency, and the process's resident memory."""
+"""Benchmark inputs: the held-out trajectories (a dataset root's split lists, or every episode under a folder),
+decoded once (frames resized to the model input), a full-resolution clip for latency, and the process's
+resident memory."""
 from __future__ import annotations
 
 import os
@@ -9,7 +10,14 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_raw_episodes, is_hdf5_path, open_episode
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
+from touchanything.devices.episodes.episode_loader import (
+    episode_exists,
+    find_hdf5_files,
+    find_raw_episodes,
+    is_hdf5_path,
+    open_episode,
+)
 from touchanything.devices.errors import UserError, failure_line
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 from touchanything.devices.snapshot import Snapshot
@@ -20,13 +28,16 @@ from touchanything.inference.model.preprocess import resize_frame
 @dataclass
 class BenchEpisode:
     """One episode in memory. images {view: (F, S, S, 3) uint8}; joints (F, 42, 3); valid (F, 2);
-    gt (F, 2, 21, 21) metric-ready ground truth (NaN outside the layout)."""
+    gt (F, 2, 21, 21) metric-ready ground truth (NaN outside the layout); split: the held-out list it comes
+    from (`test_seen`, `test_unseen`; `episodes` for a plain folder of episodes); path: where it was read."""
 
     name: str
     images: dict[str, np.ndarray]
     joints: np.ndarray
     valid: np.ndarray
     gt: np.ndarray
+    split: str = "episodes"
+    path: Path | None = None
 
     @property
     def num_frames(self) -> int:
@@ -35,6 +46,12 @@ class BenchEpisode:
     def snapshot(self, index: int, t_us: int) -> Snapshot:
         return Snapshot(index, t_us, {v: frames[index] for v, frames in self.images.items()}, self.joints[index],
                         self.valid[index])
+
+
+HELD_OUT_SPLITS = ("test_seen", "test_unseen")
+"""The split lists a dataset root's held-out trajectories come from by default."""
+PLAIN_FOLDER = "episodes"
+"""The stratum of every episode of a folder without a split file."""
 
 
 def episode_paths(data: Path) -> list[Path]:
@@ -49,7 +66,29 @@ def episode_paths(data: Path) -> list[Path]:
     return paths
 
 
-def load_episode(path: Path, size: int, max_frames: int | None) -> BenchEpisode:
+def held_out_paths(data: Path, splits: list[str] | None = None) -> list[tuple[Path, str]]:
+    """(trajectory, split) pairs: the `splits` lists (default `HELD_OUT_SPLITS`) of DATA/split.json when DATA is a
+    dataset root with one, else every episode under DATA with the split `episodes` (then `splits` is an error).
+    UserError before any work for an unknown or empty list, or a listed trajectory that does not exist."""
+    split_file = Path(data) / SPLIT_FILE
+    if not split_file.is_file():
+        if splits:
+            raise UserError(f"--splits needs a dataset root with a {SPLIT_FILE}; {data} has none")
+        return [(path, PLAIN_FOLDER) for path in episode_paths(data)]
+    unknown = [name for name in splits or () if name not in SPLIT_KEYS]
+    if unknown:
+        raise UserError(f"unknown split {unknown[0]!r}; choose from {', '.join(SPLIT_KEYS)}")
+    lists = read_split(split_file)
+    pairs = [(path, name) for name in splits or HELD_OUT_SPLITS for path in lists[name]]
+    if not pairs:
+        raise UserError(f"{split_file}: the {' and '.join(splits or HELD_OUT_SPLITS)} list(s) are empty")
+    missing = [path for path, _ in pairs if not episode_exists(path)]
+    if missing:
+        raise UserError(f"{split_file}: {len(missing)} listed trajectories do not exist (the first: {missing[0]})")
+    return pairs
+
+
+def load_episode(path: Path, size: int, max_frames: int | None, split: str = PLAIN_FOLDER) -> BenchEpisode:
     with open_episode(path) as episode:
         if episode.pressure is None or episode.wilor is None:
             raise UserError(f"{path}: needs ground-truth pressure and WiLoR poses for the accuracy benchmark")
@@ -62,20 +101,19 @@ def load_episode(path: Path, size: int, max_frames: int | None) -> BenchEpisode:
         gt = ground_truth_for_metrics(episode.pressure.grids, bool(episode.pressure.attrs.get("normalized", False)))
         return BenchEpisode(f"{episode.scene}/{episode.task}/{episode.trajectory_id}",
                             {v: np.stack(f) for v, f in images.items()},
-                            episode.wilor.joints[:frames].reshape(frames, 42, 3), episode.wilor.valid[:frames], gt[:frames])
+                            episode.wilor.joints[:frames].reshape(frames, 42, 3), episode.wilor.valid[:frames], gt[:frames],
+                            split, Path(path))
 
 
-def load_episodes(paths: list[Path], size: int, max_frames: int | None) -> tuple[list[BenchEpisode], list[str]]:
-    """`load_episode` of every path; one that fails (any exception) is named in the second list with its reason
-    and the others are loaded. UserError when none loads."""
+def load_episodes(pairs: list[tuple[Path, str]], size: int, max_frames: int | None) -> tuple[list[BenchEpisode], list[str]]:
+    """`load_episode` of every (path, split); one that fails (any exception) is named in the second list with its
+    reason and the others are loaded (none may load)."""
     episodes, failures = [], []
-    for path in paths:
+    for path, split in pairs:
         try:
-            episodes.append(load_episode(path, size, max_frames))
+            episodes.append(load_episode(path, size, max_frames, split))
         except Exception as exc:  # noqa: BLE001 - one bad trajectory never stops the benchmark
             failures.append(failure_line(path, exc))
-    if not episodes:
-        raise UserError(f"no episode could be loaded for the accuracy benchmark ({failures[0]})")
     return episodes, failures
 
 

@@ -26,8 +26,9 @@ VIEW_SETTINGS = (VIEW_NAMES, ("ego",))
 
 
 def gpu_settings(name: str, device: torch.device) -> list[BenchSetting]:
-    """Precisions the device offers × three views / ego only × captured / eager, torch newest-frame output."""
-    precisions = ("fp32", "bf16", "fp16") if device.type == "cuda" else ("fp32", "bf16")
+    """Precisions the device offers (tf32 and fp16 on a GPU) × three views / ego only × captured / eager, torch
+    newest-frame output."""
+    precisions = ("fp32", "tf32", "bf16", "fp16") if device.type == "cuda" else ("fp32", "bf16")
     return [BenchSetting(name, precision=p, views=v, device=str(device), capture=c)
             for p in precisions for v in VIEW_SETTINGS for c in (True, False)]
 
@@ -84,7 +85,7 @@ def gpu_markdown(record: dict) -> str:
              "| setting | capture | p50 ms | p99 ms | peak GPU MB |", "|---|---|---|---|---|"]
     for r in record["rows"]:
         gpu_mb = "n/a" if r.get("peak_gpu_mb") is None else f"{r['peak_gpu_mb']:.0f}"
-        lines.append(f"| {r['label']} | {r['capture']} | {r['p50_ms']:.1f} | {r['p99_ms']:.1f} | {gpu_mb} |")
+        lines.append(f"| {r['setting']} | {r['capture']} | {r['p50_ms']:.1f} | {r['p99_ms']:.1f} | {gpu_mb} |")
     lines += ["", "## Naive full-clip recompute (three views)", "", "| preset, precision | p50 ms |", "|---|---|"]
     lines += [f"| {key} | {value:.1f} |" for key, value in record["naive"].items()]
     return "\n".join(lines) + "\n"

@@ -1,11 +1,14 @@
-"""Benchmark outputs: the target checks, a Markdown table, the JSON record and the Pareto plot (PNG)."""
+"""Benchmark outputs: the target checks, a Markdown table with every accuracy's interval and the paired
+differences, the JSON record (NaN written as null) and the Pareto plot (PNG)."""
 from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 from touchanything.devices.output_safety import replacing, write_text
+from touchanything.inference.evaluation.bench_plot import pareto_plot
 
 P99_TARGET_MS = 33.0
 OUTPUT_FILES = ("engine.json", "engine.md", "engine_pareto.png")
@@ -15,10 +18,8 @@ NAIVE_RATIO_TARGET = 5.0
 PRECISION_LOSS_TARGET = 0.01
 
 
-def _reference(rows: list[dict], preset: str) -> dict | None:
-    return next((r for r in rows if r["preset"] == preset and r["runtime"] == "torch" and r["precision"] == "fp32"
-                 and r["rate"] == 1 and r["output"] == "newest" and r["invalid_hands"] == "skip"
-                 and r["views"].count("+") == 2 and r["volumetric_iou"] is not None and not r.get("blank")), None)
+def _reference(rows: list[dict], model: str) -> dict | None:
+    return next((r for r in rows if r["setting"] == f"{model}/torch-fp32/all" and r["volumetric_iou"] is not None), None)
 
 
 def _check(target: str, value: float | None, bound: float, at_most: bool) -> dict:
@@ -27,20 +28,19 @@ def _check(target: str, value: float | None, bound: float, at_most: bool) -> dic
 
 
 def target_checks(rows: list[dict], naive: dict, smallest: str) -> list[dict]:
-    """The issue's three targets, each {target, value, limit, met} (value and met None when not measured);
-    pose-only baselines are not settings to ship and are left out."""
+    """The engine's targets, each {target, value, limit, met} (value and met None when not measured); pose-only
+    twins are not settings to ship and are left out."""
     rows = [r for r in rows if not r.get("blank")]
-    fast = next((r for r in rows if r["preset"] == smallest and r["runtime"] == "onnx" and r["precision"] == "int8"
-                 and r["views"].count("+") == 2 and r["rate"] == 1 and r["output"] == "newest"), None)
+    fast = next((r for r in rows if r["setting"] == f"{smallest}/onnx-int8/all"), None)
     checks = [_check(f"{smallest} ONNX int8, all views: p99 per-frame latency (ms)", fast and fast["p99_ms"],
                      P99_TARGET_MS, at_most=True),
               _check("paper preset: naive per-frame time / streaming per-frame time",
                      naive.get("paper", {}).get("ratio"), NAIVE_RATIO_TARGET, at_most=False)]
     for row in rows:
-        reference = _reference(rows, row["preset"])
+        reference = _reference(rows, row["model"])
         same_knobs = reference and all(row[k] == reference[k] for k in ("views", "rate", "output", "invalid_hands"))
         if row["precision"] in ("int8", "bf16") and same_knobs and row["volumetric_iou"] is not None:
-            checks.append(_check(f"{row['label']}: volumetric IoU lost against fp32",
+            checks.append(_check(f"{row['setting']}: volumetric IoU lost against fp32",
                                  reference["volumetric_iou"] - row["volumetric_iou"], PRECISION_LOSS_TARGET, at_most=True))
     return checks
 
@@ -51,25 +51,77 @@ def _fmt(value, digits: int = 3) -> str:
     return f"{value:.{digits}f}" if isinstance(value, float) else str(value)
 
 
+def _with_interval(value, interval) -> str:
+    """"0.552 [0.531, 0.573]", or the value alone without an interval."""
+    if not interval or any(v is None or math.isnan(v) for v in interval):
+        return _fmt(value)
+    return f"{_fmt(value)} [{interval[0]:.3f}, {interval[1]:.3f}]"
+
+
+def _signed(entry: list[float]) -> str:
+    mean, low, high = entry
+    if any(v is None or math.isnan(v) for v in entry):
+        return "n/a"
+    return f"{mean:+.3f} [{low:+.3f}, {high:+.3f}]"
+
+
+def held_out_line(record: dict) -> str:
+    """"108 held-out trajectories (67 test_seen, 41 test_unseen) of DATA" (or the run's plain episode count)."""
+    trajectories = record.get("trajectories") or []
+    counts: dict[str, int] = {}
+    for t in trajectories:
+        counts[t["split"]] = counts.get(t["split"], 0) + 1
+    parts = ", ".join(f"{n} {split}" for split, n in counts.items())
+    return f"{len(trajectories)} held-out trajectories ({parts}) of {record['accuracy_data']}"
+
+
+def _split_cells(row: dict, splits: list[str]) -> list[str]:
+    per = row.get("per_split") or {}
+    return [_with_interval(per.get(s, {}).get("volumetric_iou"), per.get(s, {}).get("volumetric_iou_ci95")) for s in splits]
+
+
 def markdown(record: dict) -> str:
-    lines = ["# `touchanything bench`", "", f"{record['machine']}; {'quick' if record['quick'] else 'full'} run; "
-             f"accuracy on {record['accuracy_data']}.", "",
-             "| setting | p50 ms | p99 ms | frames/s | look-ahead ms | contact IoU | volumetric IoU | "
-             "agreement V-IoU | max abs diff | peak RSS MB |", "|---|---|---|---|---|---|---|---|---|---|"]
+    splits = list(dict.fromkeys(t["split"] for t in record.get("trajectories") or []))
+    minutes = f", {record['seconds'] / 60:.0f} min" if record.get("seconds") else ""
+    lines = ["# `touchanything bench`: the speed/accuracy atlas", "",
+             f"{record['machine']}; {'quick' if record['quick'] else 'full'} run{minutes}; accuracy on "
+             f"{held_out_line(record)}: official metrics per trajectory (causal, every frame replayed), their mean over "
+             "trajectories, and a 95 % bootstrap interval (2000 draws of the trajectories, within each split).", "",
+             "| setting | p50 ms | p99 ms | frames/s | look-ahead ms | volumetric IoU [95 % CI] | contact IoU [95 % CI] | "
+             + "".join(f"V-IoU {s} | " for s in splits) + "agreement V-IoU | peak RSS MB |",
+             "|---|---|---|---|---|---|---|" + "---|" * len(splits) + "---|---|"]
     for r in record["rows"]:
-        lines.append(f"| {r['label']} | {_fmt(r['p50_ms'], 1)} | {_fmt(r['p99_ms'], 1)} | {_fmt(r.get('throughput_fps'), 1)} | "
-                     f"{_fmt(r['lookahead_ms'], 0)} | {_fmt(r['contact_iou'])} | {_fmt(r['volumetric_iou'])} | "
-                     f"{_fmt(r['agreement_viou'])} | {_fmt(r.get('agreement_max_abs'))} | {_fmt(r['peak_rss_mb'], 0)} |")
+        lines.append(f"| {r['setting']} | {_fmt(r['p50_ms'], 1)} | {_fmt(r['p99_ms'], 1)} | {_fmt(r.get('throughput_fps'), 0)} | "
+                     f"{_fmt(r['lookahead_ms'], 0)} | {_with_interval(r['volumetric_iou'], r.get('volumetric_iou_ci95'))} | "
+                     f"{_with_interval(r['contact_iou'], r.get('contact_iou_ci95'))} | "
+                     + "".join(f"{c} | " for c in _split_cells(r, splits))
+                     + f"{_fmt(r['agreement_viou'])} | {_fmt(r['peak_rss_mb'], 0)} |")
+    lines += comparison_lines(record.get("comparisons") or [])
     lines += ["", "## Streaming cache against the naive recompute (torch fp32, all views)", "",
-              "| preset | naive ms/frame | streaming ms/frame | naive / streaming |", "|---|---|---|---|"]
-    for preset, n in record["naive"].items():
-        lines.append(f"| {preset} | {_fmt(n['naive_p50_ms'], 1)} | {_fmt(n['streaming_p50_ms'], 1)} | {_fmt(n['ratio'], 1)}× |")
+              "| model | naive ms/frame | streaming ms/frame | naive / streaming |", "|---|---|---|---|"]
+    for model, n in record["naive"].items():
+        lines.append(f"| {model} | {_fmt(n['naive_p50_ms'], 1)} | {_fmt(n['streaming_p50_ms'], 1)} | {_fmt(n['ratio'], 1)}× |")
     lines += vision_share_lines(record["rows"])
     lines += ["", "## Targets", "", "| target | measured | limit | met |", "|---|---|---|---|"]
     for c in record["targets"]:
         met = {True: "yes", False: "**no**", None: "not measured"}[c["met"]]
         lines.append(f"| {c['target']} | {_fmt(c['value'])} | {c['limit']} | {met} |")
     return "\n".join(lines) + "\n"
+
+
+def comparison_lines(comparisons: list[dict]) -> list[str]:
+    """The paired differences (`bench_intervals.paired_comparisons`) as a table (none without them)."""
+    if not comparisons:
+        return []
+    lines = ["", "## Paired differences on the same trajectories", "",
+             "Each setting against its model's reference (torch fp32, all views, newest frame), and each model's "
+             "reference against the base model's: the difference of the means and its 95 % paired bootstrap "
+             "interval. An interval that holds 0 is no measured difference.", "",
+             "| setting | against | Δ volumetric IoU [95 % CI] | Δ contact IoU [95 % CI] |", "|---|---|---|---|"]
+    for c in comparisons:
+        lines.append(f"| {c['setting']} | {c['against']} | {_signed(c['delta_volumetric_iou'])} | "
+                     f"{_signed(c['delta_contact_iou'])} |")
+    return lines
 
 
 SHARE_COLUMNS = ("contact_iou", "volumetric_iou", "temporal_accuracy", "temporal_f1", "mae")
@@ -86,85 +138,36 @@ def vision_share_lines(rows: list[dict]) -> list[str]:
              "0 = none, < 0 = better without them.", "",
              "| setting | " + " | ".join(SHARE_COLUMNS) + " |", "|---|" + "---|" * len(SHARE_COLUMNS)]
     for r in blanks:
-        setting = r["label"].removesuffix(" pose only")
+        setting = r["setting"].removesuffix("/pose-only")
         lines.append(f"| {setting} | " + " | ".join(_fmt(r["vision_share"][k]) for k in SHARE_COLUMNS) + " |")
     return lines
 
 
-def pareto_front(points: list[tuple[float, float]]) -> list[int]:
-    """Indices of the points no other point beats on both latency (lower) and accuracy (higher)."""
-    return [i for i, (x, y) in enumerate(points)
-            if not any((a <= x and b >= y) and (a < x or b > y) for a, b in points)]
+def json_safe(value):
+    """`value` with every non-finite float as None (JSON has no NaN)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    return value
 
 
-MIN_ACCURACY_SPAN = 0.02
-"""The plot's accuracy axis spans at least this much, so that settings a few 1e-7 apart read as equal."""
+_NUMBER_LIST = re.compile(r"\[\s*((?:-?[0-9.eE+-]+|null)(?:,\s*(?:-?[0-9.eE+-]+|null))*)\s*\]")
 
 
-def frontier_steps(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
-    """The Pareto frontier as a staircase through the front's points (latency ascending), run on to the slowest
-    point's latency: below and right of it every setting is beaten. One front point gives a flat line."""
-    front = sorted(points[i] for i in pareto_front(points))
-    if not front:
-        return []
-    steps = [front[0]]
-    for x, y in front[1:]:
-        steps += [(x, steps[-1][1]), (x, y)]
-    right = max(x for x, _ in points)
-    return steps + [(right, front[-1][1])] if right > steps[-1][0] else steps
-
-
-def pareto_figure(rows: list[dict]):
-    """The latency / accuracy plot of the rows with both measured (a matplotlib Figure): one colour per preset,
-    the frontier, plain tick labels on both axes (no offset notation)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import matplotlib.ticker
-
-    measured = [r for r in rows if r["volumetric_iou"] is not None and not math.isnan(r["volumetric_iou"])
-                and r["p99_ms"] is not None]
-    points = [(r["p99_ms"], r["volumetric_iou"]) for r in measured]
-    fig, ax = plt.subplots(figsize=(9, 6), dpi=110)
-    for preset in sorted({r["preset"] for r in measured}):
-        chosen = [p for p, r in zip(points, measured) if r["preset"] == preset]
-        ax.scatter(*zip(*chosen), label=preset, s=28)
-    if steps := frontier_steps(points):
-        ax.plot(*zip(*steps), "k--", lw=1, label="Pareto frontier")
-    for (x, y), r in zip(points, measured):
-        ax.annotate(r["label"].split(" ", 1)[1], (x, y), fontsize=6, xytext=(3, 2), textcoords="offset points")
-    ax.axvline(P99_TARGET_MS, color="grey", lw=0.8, ls=":")
-    ax.set_xscale("log")
-    ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-    ax.xaxis.set_minor_formatter(matplotlib.ticker.ScalarFormatter())
-    if points:
-        low, high = min(y for _, y in points), max(y for _, y in points)
-        pad = max(MIN_ACCURACY_SPAN - (high - low), 0.0) / 2 + 0.05 * (high - low)
-        ax.set_ylim(low - pad, high + pad)
-    ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter(useOffset=False))
-    ax.set_xlabel("p99 per-frame engine latency (ms, log scale)")
-    ax.set_ylabel("volumetric IoU (official, held-out episodes)")
-    ax.set_title("TouchAnything streaming engine: latency against accuracy")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return fig
-
-
-def pareto_plot(rows: list[dict], path: Path) -> None:
-    """`pareto_figure` saved as PNG."""
-    import matplotlib.pyplot as plt
-
-    fig = pareto_figure(rows)
-    fig.savefig(path, format="png")
-    plt.close(fig)
+def record_json(record: dict) -> str:
+    """The record as indented JSON (NaN as null), each list of numbers on one line."""
+    text = json.dumps(json_safe(record), indent=1)
+    return _NUMBER_LIST.sub(lambda m: "[" + ", ".join(x.strip() for x in m.group(1).split(",")) + "]", text) + "\n"
 
 
 def write_outputs(record: dict, out_dir: Path) -> list[Path]:
     """OUTPUT_FILES into `out_dir`, each under the output rule (output_safety.replacing)."""
     paths = [out_dir / name for name in OUTPUT_FILES]
-    write_text(paths[0], json.dumps(record, indent=1) + "\n")
+    write_text(paths[0], record_json(record))
     write_text(paths[1], markdown(record))
     with replacing(paths[2]) as temporary:
-        pareto_plot(record["rows"], temporary)
+        pareto_plot(record["rows"], temporary, f"{record['machine']}; {held_out_line(record)}")
     return paths

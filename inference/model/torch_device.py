@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import torch
@@ -12,8 +14,9 @@ import torch.distributed as dist
 from touchanything.devices.errors import UserError
 
 DEVICE_HELP = "auto (the first CUDA GPU when there is one, else the CPU), cpu, cuda or cuda:N"
-PRECISIONS = {"fp32": None, "bf16": torch.bfloat16, "fp16": torch.float16}
-"""Precision name → the autocast dtype (None: no autocast)."""
+PRECISIONS = {"fp32": None, "bf16": torch.bfloat16, "fp16": torch.float16, "tf32": None}
+"""Precision name → the autocast dtype (None: no autocast). tf32 keeps fp32 weights and activations and lets a
+CUDA GPU's matrix products and convolutions run in TensorFloat-32 (`autocast`)."""
 
 
 def resolve_device(name: str, local_rank: int = 0) -> torch.device:
@@ -39,11 +42,11 @@ def resolve_device(name: str, local_rank: int = 0) -> torch.device:
 
 
 def check_precision(precision: str, device: torch.device) -> None:
-    """UserError for an unknown precision or fp16 on the CPU."""
+    """UserError for an unknown precision, or fp16 or tf32 on the CPU."""
     if precision not in PRECISIONS:
         raise UserError(f"unknown precision {precision!r}; choose from {', '.join(PRECISIONS)}")
-    if precision == "fp16" and device.type == "cpu":
-        raise UserError("fp16 needs a CUDA GPU (--device cuda); on the CPU use fp32 or bf16")
+    if precision in ("fp16", "tf32") and device.type == "cpu":
+        raise UserError(f"{precision} needs a CUDA GPU (--device cuda); on the CPU use fp32 or bf16")
 
 
 def device_label(device: torch.device) -> str:
@@ -53,12 +56,35 @@ def device_label(device: torch.device) -> str:
     return f"{device} ({torch.cuda.get_device_name(device)})"
 
 
-def autocast(device: torch.device, precision: str):
-    """The autocast context of `precision` on `device` (a no-op for fp32). Its weight-cast cache is off: a
-    CUDA graph captured under autocast would otherwise point at cached casts freed when the context exits
-    (each call enters a fresh context, so the cache would not outlive a call anyway)."""
+@contextmanager
+def autocast(device: torch.device, precision: str) -> Iterator[None]:
+    """The context of `precision` on `device`: autocast for bf16 / fp16 (a no-op for fp32), and for tf32 the
+    CUDA matrix products and cuDNN convolutions in TensorFloat-32 (`matmul_precision`). Autocast's weight-cast
+    cache is off: a CUDA graph captured under autocast would otherwise point at cached casts freed when the
+    context exits (each call enters a fresh context, so the cache would not outlive a call anyway)."""
     dtype = PRECISIONS[precision]
-    return torch.autocast(device.type, dtype=dtype, enabled=dtype is not None, cache_enabled=False)
+    with matmul_precision("tf32" if precision == "tf32" else None), \
+            torch.autocast(device.type, dtype=dtype, enabled=dtype is not None, cache_enabled=False):
+        yield
+
+
+@contextmanager
+def matmul_precision(mode: str | None) -> Iterator[None]:
+    """CUDA's fp32 matrix-product and convolution precision set to `mode` ("tf32", "ieee") inside the context
+    and restored after, also on an exception (None: left alone). The setting is process-wide; on a CPU it
+    changes nothing the CPU computes."""
+    if mode is None:
+        yield
+        return
+    settings = (torch.backends.cuda.matmul, torch.backends.cudnn.conv)
+    before = [s.fp32_precision for s in settings]
+    try:
+        for s in settings:
+            s.fp32_precision = mode
+        yield
+    finally:
+        for s, value in zip(settings, before):
+            s.fp32_precision = value
 
 
 @dataclass(frozen=True)

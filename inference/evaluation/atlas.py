@@ -1,0 +1,167 @@
+"""The speed/accuracy atlas read back (`bench`'s engine.json): each setting's held-out accuracy and the weights
+it was measured with, and the choice a latency budget makes — the most accurate setting whose p99 latency,
+measured on this machine by a short probe, fits the budget.
+
+Accuracy comes from the atlas (it needs the held-out set and an hour); latency is probed here, because it is a
+property of the machine. Settings are probed from the most accurate down and the first that fits is chosen,
+so a generous budget probes one setting. A model whose file here differs from the one the atlas measured
+(`checkpoint_sha256`) makes the atlas unusable for it: the choice is refused rather than made on another
+model's accuracy.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from touchanything.devices.errors import UserError, require_finite_positive
+from touchanything.devices.snapshot import Snapshot
+from touchanything.inference.engine.streaming_engine import StreamingEngine
+from touchanything.inference.evaluation.bench_setting import BenchSetting, parse_setting
+from touchanything.inference.model.models import TactileModel
+
+PROBE_FRAMES = {True: 40, False: 150}
+"""Frames timed per setting by the probe, --quick or not (after `PROBE_WARMUP` untimed ones)."""
+PROBE_WARMUP = 10
+
+
+@dataclass(frozen=True)
+class AtlasRow:
+    """One setting of the atlas: accuracy (mean over `trajectories` held-out trajectories, 95 % intervals) and
+    the p99 latency measured where the atlas was made."""
+
+    setting: BenchSetting
+    checkpoint_sha256: str
+    trajectories: int
+    volumetric_iou: float
+    volumetric_iou_ci95: tuple[float, float]
+    contact_iou: float
+    contact_iou_ci95: tuple[float, float]
+    atlas_p99_ms: float
+
+    @property
+    def name(self) -> str:
+        return self.setting.name()
+
+    def accuracy_line(self) -> str:
+        """"V-IoU 0.552 [0.531, 0.573], C-IoU 0.661 [0.640, 0.680] on 108 held-out trajectories"."""
+        v, c = self.volumetric_iou_ci95, self.contact_iou_ci95
+        return (f"V-IoU {self.volumetric_iou:.3f} [{v[0]:.3f}, {v[1]:.3f}], C-IoU {self.contact_iou:.3f} "
+                f"[{c[0]:.3f}, {c[1]:.3f}] on {self.trajectories} held-out trajectories")
+
+
+def _row(entry: dict) -> AtlasRow | None:
+    """The AtlasRow of a bench row with accuracy and latency (None for a pose-only twin or a latency-only row)."""
+    if entry.get("blank") or not isinstance(entry.get("volumetric_iou"), float) or entry.get("p99_ms") is None:
+        return None
+    return AtlasRow(parse_setting(entry["setting"]), str(entry["checkpoint_sha256"]), int(entry["trajectories"]),
+                    float(entry["volumetric_iou"]), tuple(float(x) for x in entry["volumetric_iou_ci95"]),
+                    float(entry["contact_iou"]), tuple(float(x) for x in entry["contact_iou_ci95"]), float(entry["p99_ms"]))
+
+
+def read_atlas(path: Path) -> list[AtlasRow]:
+    """The settings of a bench record with accuracy and latency; UserError (one line) for a missing or damaged
+    file, or one without such settings."""
+    path = Path(path)
+    try:
+        record = json.loads(path.read_text())
+        rows = [row for entry in record["rows"] if (row := _row(entry)) is not None]
+    except FileNotFoundError:
+        raise UserError(f"{path}: atlas not found (make one with `touchanything bench`)") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: cannot read the atlas ({exc.strerror or exc})") from None
+    except (ValueError, KeyError, TypeError, AttributeError, UserError) as exc:
+        raise UserError(f"{path}: not a readable atlas (a `touchanything bench` engine.json): "
+                        f"{type(exc).__name__} {exc}".rstrip()) from None
+    if not rows:
+        raise UserError(f"{path}: the atlas holds no setting with both accuracy and latency")
+    return rows
+
+
+def file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as file:
+        for block in iter(lambda: file.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def rows_for(rows: list[AtlasRow], checkpoints: dict[str, Path], atlas: Path) -> list[AtlasRow]:
+    """The atlas rows of the models present here (name → checkpoint), most accurate first (faster first among
+    equals); UserError when a present model's weights are not the ones the atlas measured."""
+    digests = {name: file_sha256(path) for name, path in checkpoints.items()
+               if any(row.setting.model == name for row in rows)}
+    for row in rows:
+        here = digests.get(row.setting.model)
+        if here is not None and here != row.checkpoint_sha256:
+            raise UserError(f"{atlas}: measured with other weights of {row.setting.model} (sha256 "
+                            f"{row.checkpoint_sha256[:12]}…, {checkpoints[row.setting.model]} is {here[:12]}…); "
+                            "re-measure with `touchanything bench`")
+    present = [row for row in rows if row.setting.model in digests]
+    if not present:
+        raise UserError(f"{atlas}: none of its models ({', '.join(sorted({r.setting.model for r in rows}))}) is here")
+    return sorted(present, key=lambda row: (-row.volumetric_iou, row.atlas_p99_ms))
+
+
+def find_row(rows: list[AtlasRow], name: str, atlas: Path) -> AtlasRow:
+    """The row of the setting `name`; UserError listing a few names when the atlas has no such setting."""
+    setting = parse_setting(name)
+    for row in rows:
+        if row.setting == dataclasses.replace(setting, device=row.setting.device):
+            return row
+    known = ", ".join(row.name for row in rows[:4])
+    raise UserError(f"setting {name} is not in the atlas {atlas} (its most accurate: {known}, …)")
+
+
+def probe_p99(model: TactileModel, setting: BenchSetting, clip: list[Snapshot], frames: int, device: str) -> float:
+    """p99 per-frame step time (ms) of `setting` on this machine over `frames` frames of `clip` (after
+    PROBE_WARMUP untimed ones); ONNX graphs come from the user cache (exported on first use)."""
+    engine = StreamingEngine(model, dataclasses.replace(setting.engine_config(None), device=device).check())
+    times = []
+    for i in range(PROBE_WARMUP + frames):
+        snapshot = dataclasses.replace(clip[i % len(clip)], frame_index=i, t_us=int(time.monotonic() * 1e6))
+        start = time.perf_counter()
+        engine.step(snapshot)
+        if i >= PROBE_WARMUP:
+            times.append((time.perf_counter() - start) * 1000)
+    return float(np.percentile(times, 99))
+
+
+@dataclass(frozen=True)
+class BudgetChoice:
+    """The chosen row with its p99 measured here, and every probe made (setting name → p99 ms)."""
+
+    row: AtlasRow
+    p99_ms: float
+    probed: dict[str, float]
+
+
+def choose_within_budget(rows: list[AtlasRow], budget_ms: float, measure: Callable[[AtlasRow], float],
+                         progress=print) -> BudgetChoice:
+    """The first of `rows` (most accurate first) whose `measure`d p99 fits `budget_ms`. UserError when the budget
+    is not a finite number > 0, or when nothing fits (naming the fastest setting and its p99 here)."""
+    require_finite_positive("--budget-ms", budget_ms)
+    probed: dict[str, float] = {}
+    for row in rows:
+        probed[row.name] = p99 = measure(row)
+        progress(f"probe {row.name}: p99 {p99:.2f} ms ({'fits' if p99 <= budget_ms else 'over'} {budget_ms:g} ms)")
+        if p99 <= budget_ms:
+            return BudgetChoice(row, p99, probed)
+    fastest = min(probed, key=probed.get)
+    raise UserError(f"no setting fits {budget_ms:g} ms on this machine: the fastest, {fastest}, took p99 "
+                    f"{probed[fastest]:.2f} ms here")
+
+
+def choice_line(choice: BudgetChoice, budget_ms: float) -> str:
+    """Why the setting was chosen, in one line."""
+    better = [name for name, p99 in choice.probed.items() if name != choice.row.name and math.isfinite(p99)]
+    beaten = f"; {len(better)} more accurate setting(s) took longer" if better else "; the most accurate setting"
+    return (f"setting {choice.row.name}: {choice.row.accuracy_line()}; p99 {choice.p99_ms:.2f} ms here, within "
+            f"{budget_ms:g} ms{beaten}")

@@ -1,0 +1,80 @@
+"""The uncertainty of a bench run's accuracy: a 95 % bootstrap interval on every row's volumetric and contact IoU
+(over all held-out trajectories and per split), and paired differences between settings measured on the same
+trajectories (`bootstrap`): each setting against its model's reference (int8 against fp32, a view subset
+against all views, a rate or output position against every frame's newest), and each model's reference
+against the base model's (`nano`: what a model adds or loses against the default one).
+
+Rows carry their per-trajectory values (`bench.PER_TRAJECTORY_METRICS`) aligned with the run's trajectory list
+(`align_rows`); a trajectory a model could not replay is NaN in its rows, which the official mean leaves out.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from touchanything.inference.evaluation.bench_setting import BenchSetting, parse_setting, reference_of
+from touchanything.inference.evaluation.bootstrap import Resampler
+
+INTERVAL_METRICS = ("volumetric_iou", "contact_iou")
+
+
+def align_rows(rows: list[dict], own: list[dict], trajectories: list[dict]) -> None:
+    """Reorder each row's per-trajectory values from its model's trajectory list `own` to the run's list
+    `trajectories` (NaN where the model has no value)."""
+    where = {t["name"]: i for i, t in enumerate(own)}
+    for row in rows:
+        values = row.get("per_trajectory")
+        if values is None:
+            continue
+        row["per_trajectory"] = {metric: [values[metric][where[t["name"]]] if t["name"] in where else math.nan
+                                          for t in trajectories] for metric in values}
+
+
+def _interval_fields(resampler: Resampler, values: dict[str, list[float]], keep: np.ndarray | None = None) -> dict:
+    out = {}
+    for metric in INTERVAL_METRICS:
+        series = np.asarray(values[metric], np.float64)
+        mean, low, high = resampler.interval(series if keep is None else series[keep])
+        out[metric], out[f"{metric}_ci95"] = mean, [low, high]
+    return out
+
+
+def add_intervals(rows: list[dict], trajectories: list[dict]) -> None:
+    """Set `<metric>_ci95` [low, high] on every row with per-trajectory values (its `<metric>` is the same official
+    mean), and `per_split` {split: {trajectories, <metric>, <metric>_ci95}}."""
+    splits = [t["split"] for t in trajectories]
+    resampler = Resampler(splits)
+    per_split = {name: np.array([s == name for s in splits]) for name in dict.fromkeys(splits)}
+    split_resamplers = {name: Resampler([name] * int(keep.sum())) for name, keep in per_split.items()}
+    for row in rows:
+        if row.get("per_trajectory") is None:
+            continue
+        row.update(_interval_fields(resampler, row["per_trajectory"]))
+        row["per_split"] = {name: {"trajectories": int(keep.sum()),
+                                   **_interval_fields(split_resamplers[name], row["per_trajectory"], keep)}
+                            for name, keep in per_split.items()}
+
+
+def paired_comparisons(rows: list[dict], trajectories: list[dict], base_model: str) -> list[dict]:
+    """{setting, against, kind ("setting" | "model"), trajectories, delta_<metric>: [mean, low, high]} for every
+    row with accuracy against its reference setting, and every model's reference against `base_model`'s."""
+    resampler = Resampler([t["split"] for t in trajectories])
+    measured = {row["setting"]: row for row in rows if row.get("per_trajectory") is not None}
+    base = BenchSetting(base_model).name()
+    pairs = []
+    for name in measured:
+        setting = parse_setting(name)
+        reference = reference_of(setting).name()
+        if reference != name and reference in measured:
+            pairs.append((name, reference, "setting"))
+        elif reference == name != base and not setting.blank and base in measured:
+            pairs.append((name, base, "model"))
+    out = []
+    for name, against, kind in pairs:
+        a, b = measured[name]["per_trajectory"], measured[against]["per_trajectory"]
+        entry = {"setting": name, "against": against, "kind": kind, "trajectories": len(trajectories)}
+        for metric in INTERVAL_METRICS:
+            entry[f"delta_{metric}"] = list(resampler.difference(a[metric], b[metric]))
+        out.append(entry)
+    return out
