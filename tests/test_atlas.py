@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers.atlas_file import atlas_row, write_atlas
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import bundled_models, sample_episodes
 from touchanything.devices.errors import UserError
@@ -37,27 +38,14 @@ def test_bad_setting_names_say_which_part_is_wrong(name, message):
         parse_setting(name)
 
 
-def atlas_row(setting: str, sha: str, viou: float, p99: float) -> dict:
-    return {"setting": setting, "model": setting.split("/")[0], "checkpoint_sha256": sha, "trajectories": 108,
-            "p99_ms": p99, "volumetric_iou": viou, "volumetric_iou_ci95": [viou - 0.02, viou + 0.02],
-            "contact_iou": viou + 0.1, "contact_iou_ci95": [viou + 0.08, viou + 0.12], "blank": False}
-
-
 @pytest.fixture(scope="module")
 def shas() -> dict[str, str]:
     return {name: file_sha256(path) for name, path in bundled_models().items()}
 
 
 @pytest.fixture
-def atlas(tmp_path, shas) -> Path:
-    rows = [atlas_row("nano/torch-fp32/all", shas["nano"], 0.60, 8.0), atlas_row("nano/onnx-int8/ego", shas["nano"], 0.55, 3.0),
-            atlas_row("baseline_pose/onnx-int8/all", shas["baseline_pose"], 0.50, 1.0),
-            atlas_row("gone/torch-fp32/all", "0" * 64, 0.9, 1.0),  # a model that is not here: left out
-            dict(atlas_row("nano/torch-fp32/all/pose-only", shas["nano"], 0.4, 8.0), blank=True),
-            {"setting": "paper/torch-fp32/all", "model": "paper", "p99_ms": 900.0, "volumetric_iou": None}]
-    path = tmp_path / "engine.json"
-    path.write_text(json.dumps({"rows": rows}))
-    return path
+def atlas(tmp_path) -> Path:
+    return write_atlas(tmp_path / "engine.json")
 
 
 def test_the_atlas_rows_of_the_models_here_most_accurate_first(atlas):

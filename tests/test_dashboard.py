@@ -12,6 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from helpers.atlas_file import write_atlas
 from helpers.hand_video import write_hand_video
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import MODELS_DIR, sample_episodes
@@ -247,3 +248,67 @@ def test_no_display_is_one_clear_line(monkeypatch, capsys):
     err = capsys.readouterr().err
     assert "cannot open the dashboard: no X display: DISPLAY is not set; use --headless" in err
     assert "Traceback" not in err
+
+
+def replay_with_atlas(atlas: Path, shot: Path) -> dict:
+    dashboard = replay_in_dashboard(sample_episodes()[0], NANO, VIEW_NAMES, max_frames=120, screenshot=shot, atlas=atlas)
+    state = dashboard.session.state()
+    return {**summary(dashboard), "ring": dashboard.atlas.ring, "setting": state.setting, "p99": state.step_p99_ms,
+            "rows": len(state.atlas), "y": [dashboard.atlas.y(v) for v in (0.60, 0.50)]}
+
+
+def test_the_atlas_panel_shows_the_atlas_and_the_running_setting(dashboard_display, tmp_path):
+    """Screenshot: a dot per atlas setting in its model's colour, the legend, and a white ring where the running
+    setting (nano torch fp32, all views) is: its live p99 and its atlas V-IoU."""
+    from touchanything.viz.dashboard.atlas_panel import MODEL_COLOURS
+
+    shot = tmp_path / "atlas.png"
+    result = in_fresh_process(replay_with_atlas, write_atlas(tmp_path / "engine.json"), shot)
+    assert result["setting"] == "nano/torch-fp32/all" and result["p99"] > 0 and result["rows"] == 3
+    assert result["ring"] is not None and abs(result["ring"][1] - result["y"][0]) < 1e-6
+    panel = crop(cv2.imread(str(shot))[..., ::-1], result["rects"]["atlas"]).astype(int)
+    for colour in MODEL_COLOURS[:2]:  # nano and baseline_pose: dots and legend
+        assert (np.abs(panel - colour).max(axis=-1) < 30).sum() >= 40, colour
+    cx, cy = result["ring"]
+    on_ring = [panel[round(cy + 7 * np.sin(a)), round(cx + 7 * np.cos(a))] for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)]
+    assert sum(bool(np.all(p > 170)) for p in on_ring) >= 10, "the running setting's ring is not drawn"
+
+
+def atlas_switch_run(atlas: Path) -> dict:
+    """The ring follows a model switch (to another atlas row) and a rate switch (to a setting the atlas lacks)."""
+    seen: dict[str, object] = {}
+    errors: list[str] = []
+    with open_episode(sample_episodes()[0]) as episode:
+        session = ReplaySession(episode, build_engine(NANO, VIEW_NAMES), NANO, loop=True)
+        session.use_atlas(atlas)
+        dashboard = Dashboard(session.start())
+
+        def drive() -> None:
+            try:
+                wait_for(lambda: getattr(dashboard, "atlas", None) is not None and dashboard.atlas.ring is not None,
+                         "the ring of nano")
+                seen["nano"] = dashboard.atlas.ring
+                session.set_model("baseline_pose", "onnx int8")
+                wait_for(lambda: session.state().setting == "baseline_pose/onnx-int8/all" and dashboard.atlas.ring is not None
+                         and dashboard.atlas.ring != seen["nano"], "the ring of baseline_pose")
+                seen["baseline_pose"] = dashboard.atlas.ring
+                session.set_rate(2)
+                wait_for(lambda: session.state().setting == "baseline_pose/onnx-int8/all/every2", "predicting every 2nd frame")
+                wait_for(lambda: dashboard.atlas.ring is None, "the ring of a setting the atlas lacks to go")
+                seen["y"] = [dashboard.atlas.y(v) for v in (0.60, 0.50)]
+            except AssertionError as exc:
+                errors.append(str(exc))
+            finally:
+                dashboard.close()
+
+        thread = threading.Thread(target=drive, daemon=True)
+        thread.start()
+        dashboard.run()
+        thread.join(5)
+    return {"errors": errors, **seen}
+
+
+def test_the_atlas_ring_moves_with_the_model_and_rate_switches(dashboard_display, tmp_path):
+    result = in_fresh_process(atlas_switch_run, write_atlas(tmp_path / "engine.json"))
+    assert not result["errors"], result["errors"]
+    assert abs(result["nano"][1] - result["y"][0]) < 1e-6 and abs(result["baseline_pose"][1] - result["y"][1]) < 1e-6

@@ -58,6 +58,6 @@ def run(args: argparse.Namespace) -> int:
         replay_to_video(path, choice, views, args.out, args.hand3d, rerun)
         print(f"watch it with any video player: {args.out}")
     else:
-        stats = replay_in_dashboard(path, choice, views, rerun=rerun, loop=True).stats
+        stats = replay_in_dashboard(path, choice, views, rerun=rerun, loop=True, atlas=args.atlas).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

@@ -105,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
     request = setting_request(args)
     target = rerun_target(args, (args.scene, *(request.inputs if request else ())), LIVE_IMAGE_SCALE)
     session = open_live_session(args.scene, args.device, picked_setting(request, args.device))
+    session.use_atlas(args.atlas)
     engine = session.live and session.live.engine
     recording = target and open_recording(target, f"live {args.scene.stem}", session_properties(session.choice, engine))
     if recording is not None:

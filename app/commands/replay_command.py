@@ -86,6 +86,6 @@ def run(args: argparse.Namespace) -> int:
     elif headless:
         replay_to_video(args.episode, choice, views, out, args.hand3d, rerun)
     else:
-        stats = replay_in_dashboard(args.episode, choice, views, rerun=rerun).stats
+        stats = replay_in_dashboard(args.episode, choice, views, rerun=rerun, atlas=args.atlas).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

@@ -7,12 +7,22 @@ import dataclasses
 import threading
 import time
 from collections import deque
+from pathlib import Path
 
 import numpy as np
 
-from touchanything.app.sessions.bundled import bundled_models
-from touchanything.app.sessions.engine_choice import CPU_TIERS, ModelChoice, build_engine, illustrative_note, model_label, tiers_for
+from touchanything.app.sessions.bundled import ATLAS_FILE, bundled_models
+from touchanything.app.sessions.engine_choice import (
+    CPU_TIERS,
+    ModelChoice,
+    build_engine,
+    illustrative_note,
+    model_label,
+    setting_name,
+    tiers_for,
+)
 from touchanything.app.sessions.rerun_sink import RerunSink
+from touchanything.app.sessions.setting_choice import display_atlas
 from touchanything.devices.errors import UserError
 from touchanything.devices.rate_meter import RateMeter, StageMeans
 from touchanything.devices.snapshot import POSE_FROM_CAMERA, VIEW_NAMES, Snapshot
@@ -27,12 +37,16 @@ from touchanything.viz.line_plot import PLOT_SAMPLES
 
 RECENT_FRAMES = 64
 """Snapshots kept to pair late predictions with their frame's measured pressure."""
+STEP_WINDOW = 100
+"""Engine step times kept for the live p99 the atlas panel places the running setting at."""
+MIN_STEPS = 10
 
 
 class EngineSession:
     """Subclasses feed `submit(snapshot)` from their source thread and provide `truth_of`, `playback`
     and `source_rows`. `engine` None (its model failed to load) still shows cameras and measurements.
-    `rerun`, when set before `start`, gets every snapshot and prediction (and is closed after the engine)."""
+    `rerun`, when set before `start`, gets every snapshot and prediction (and is closed after the engine).
+    The dashboard's atlas panel shows the committed atlas unless `use_atlas` names another."""
 
     def __init__(self, engine: StreamingEngine | None, choice: ModelChoice, message: str = "") -> None:
         self.views = tuple(VIEW_NAMES)
@@ -47,6 +61,8 @@ class EngineSession:
         self._prediction: tuple[Prediction, np.ndarray | None] | None = None
         self._history = {name: deque(maxlen=PLOT_SAMPLES) for name in ("volumetric_iou", "contact_iou", "latency_ms")}
         self._stages = StageMeans()
+        self._steps: deque[float] = deque(maxlen=STEP_WINDOW)
+        self.atlas, self.atlas_note = display_atlas(ATLAS_FILE)
         self.frames, self._predictions = RateMeter(), RateMeter()
         self.message = message
         self._loading = False
@@ -54,6 +70,10 @@ class EngineSession:
         self._camera_note = illustrative_note(choice, camera_pose=True)
         self.live = LiveEngine(engine, on_prediction=self._on_prediction) if engine is not None else None
         self.rerun: RerunSink | None = None
+
+    def use_atlas(self, atlas: Path) -> None:
+        """Show the settings of `atlas` (a `bench` engine.json) in the dashboard's atlas panel."""
+        self.atlas, self.atlas_note = display_atlas(atlas)
 
     def truth_of(self, snapshot: Snapshot) -> np.ndarray | None:
         """(2, 21, 21) measured pressure of the snapshot's frame, or None."""
@@ -107,6 +127,8 @@ class EngineSession:
             self._prediction = (prediction, truth)
             self._predictions.tick()
             self._stages.add(prediction.timings_ms)
+            if "total" in prediction.timings_ms:
+                self._steps.append(prediction.timings_ms["total"])
             self._history["latency_ms"].append(prediction.latency_ms)
             if truth is not None and prediction.pressure is not None:
                 self._truth_seen = True
@@ -145,7 +167,9 @@ class EngineSession:
                 history={name: np.array(values, np.float64) for name, values in self._history.items()},
                 stage_ms=self._stages.means(), engine_fps=self._predictions.rate(), sources=tuple(rows),
                 playback=self.playback(), model=self._model_line(snapshot), message=self.message,
-                recording=self.recording_status())
+                recording=self.recording_status(), setting=setting_name(self.choice, self.views) if self.live else "",
+                step_p99_ms=float(np.percentile(self._steps, 99)) if len(self._steps) >= MIN_STEPS else None,
+                atlas=self.atlas, atlas_note=self.atlas_note)
 
     def _model_line(self, snapshot: Snapshot | None) -> str:
         """The model's label, with the illustrative-only note while the poses come from the camera."""
@@ -190,11 +214,20 @@ class EngineSession:
     def set_model(self, model: str, tier: str) -> None:
         """Load `model` (a bundled name or the session's checkpoint) at `tier` on a background thread; the
         old engine keeps running until the new one is ready, and keeps running if it fails."""
+        path = bundled_models().get(model)
+        self._switch((self.choice.with_checkpoint(path) if path is not None else self.choice).with_tier(tier))
+
+    def current_rate(self) -> int:
+        return self.choice.every
+
+    def set_rate(self, every: int) -> None:
+        """Predict every `every`-th frame from now on (the engine is rebuilt on a background thread)."""
+        self._switch(dataclasses.replace(self.choice, every=every))
+
+    def _switch(self, choice: ModelChoice) -> None:
         if self._loading:
             self.message = "still loading the previous choice"
             return
-        path = bundled_models().get(model)
-        choice = (self.choice.with_checkpoint(path) if path is not None else self.choice).with_tier(tier)
         self._loading = True
         self.message = f"loading {model_label(choice)}…"
         threading.Thread(target=self._load, args=(choice,), name="touchanything-load", daemon=True).start()
@@ -211,6 +244,8 @@ class EngineSession:
             self.live = LiveEngine(engine, on_prediction=self._on_prediction).start()
         else:
             self.live.replace_engine(engine)
+        with self._lock:
+            self._steps.clear()
         self.choice, self._model = choice, model_label(choice, engine)
         self._camera_note = illustrative_note(choice, camera_pose=True)
         self.message = f"running {self._model}"

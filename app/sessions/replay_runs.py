@@ -76,12 +76,13 @@ def check_video_output(out: Path, inputs: Iterable[Path | None], overwrite: bool
 
 def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...], max_frames: int | None = None,
                         screenshot: Path | None = None, rerun: RerunTarget | None = None,
-                        loop: bool = False) -> Dashboard:
+                        loop: bool = False, atlas: Path | None = None) -> Dashboard:
     """Play the episode in the dashboard until its window closes (or `max_frames` were rendered; then
     `screenshot` is saved); returns the closed dashboard (its stats, screenshots and session). A model
     that fails to load is reported in the dashboard, which then shows the cameras and the measured
     pressure only. `rerun`: everything shown also goes into that Rerun recording. `loop`: play the
-    episode over and over (else hold at its end)."""
+    episode over and over (else hold at its end). `atlas`: the atlas the atlas panel shows (None: the
+    committed one)."""
     with open_episode(path) as episode:
         _require_ego(path, episode)
         if problem := display_problem():
@@ -93,6 +94,8 @@ def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...],
             print(message)
         session = ReplaySession(episode, engine, choice, message, pose_source_for(episode), loop)
         session.set_views(views)
+        if atlas is not None:
+            session.use_atlas(atlas)
         recording = rerun and open_recording(rerun, f"replay {episode_name(episode)}", session_properties(choice, engine, episode))
         if recording is not None:
             log_episode_videos(recording, episode, VIEW_NAMES)

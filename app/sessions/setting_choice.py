@@ -54,6 +54,15 @@ class PickedSetting:
                            output=s.output)
 
 
+def display_atlas(atlas: Path) -> tuple[tuple[AtlasRow, ...], str]:
+    """The atlas rows of the models here, for the dashboard's atlas panel, or none and the reason (a missing,
+    damaged or other-weights atlas leaves the panel empty; it never stops a session)."""
+    try:
+        return tuple(rows_for(read_atlas(atlas), bundled_models(), atlas)), ""
+    except UserError as exc:
+        return (), str(exc)
+
+
 def _checkpoints(model_folders: list[Path] | None) -> dict[str, Path]:
     if model_folders:
         return {Path(f).name: Path(f) / "best_model.pth" for f in model_folders}

@@ -27,11 +27,12 @@ class ConvSpec:
 
 
 CONV_BACKBONES = {
+    "conv_p16": ConvSpec(channels=(8, 16, 32, 64), width=64),
     "conv_n16": ConvSpec(channels=(16, 32, 64, 128), width=128),
     "conv_t16": ConvSpec(channels=(24, 48, 96, 192), width=192),
 }
-"""`conv_n16` (width 128, the `nano` preset) and `conv_t16` (width 192, `tiny`): four stride-2 3×3
-convolution stages (BatchNorm, ReLU), so a 96 px input gives 6 × 6 = 36 tokens."""
+"""`conv_p16` (width 64, the `pico` preset), `conv_n16` (width 128, `nano`) and `conv_t16` (width 192, `tiny`):
+four stride-2 3×3 convolution stages (BatchNorm, ReLU), so a 96 px input gives 6 × 6 = 36 tokens, 64 px 16."""
 
 
 def _stage(inputs: int, outputs: int) -> nn.Sequential:

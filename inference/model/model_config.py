@@ -260,11 +260,13 @@ PRESETS = {
     "small": _light("dinov2_vits14", 168, temporal=2, heads=8, channels=64),
     "tiny": _cpu("conv_t16", 112, temporal=2, channels=64),
     "nano": _cpu("conv_n16", 96, temporal=1, channels=64),
+    "pico": _cpu("conv_p16", 64, temporal=1, channels=64),
     "nano_vit": with_backbone(_light("vit_n14", 112, temporal=1, heads=4, channels=32), freeze=False),
 }
 """`paper` is exactly the official architecture; `small` (ViT-S/14 at 168 px, for users with the DINOv2
-S/14 weights) is narrower and shallower; `tiny` (conv width 192 at 112 px) and `nano` (conv width 128 at
-96 px) are the CPU presets of configs/tiny.yaml and configs/nano.yaml, trained from scratch (`_cpu`);
+S/14 weights) is narrower and shallower; `tiny` (conv width 192 at 112 px), `nano` (conv width 128 at
+96 px) and `pico` (conv width 64 at 64 px) are the CPU presets of configs/tiny.yaml, configs/nano.yaml and
+configs/pico.yaml, trained from scratch (`_cpu`);
 `nano_vit` is the nano of before them (the official structure with a ViT at 112 px, configs/nano_vit.yaml),
 kept to measure against."""
 

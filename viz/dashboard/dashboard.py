@@ -26,6 +26,7 @@ from touchanything.devices.rate_meter import RateMeter
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.viz.contact import hand_contact
+from touchanything.viz.dashboard.atlas_panel import AtlasPanel
 from touchanything.viz.dashboard.dashboard_controls import Tables, build_controls, build_tables
 from touchanything.viz.dashboard.dashboard_drawn import ContactLamps, HistoryPlots
 from touchanything.viz.dashboard.dashboard_panels import blank, camera_panel, pressure_views
@@ -41,12 +42,13 @@ CELL = 7
 MAPS = (maps_width(CELL), 21 * CELL)
 CONTACT = (460, 84)
 PLOTS = (MAPS[0], MAPS[1] + 40)
+ATLAS = (3 * CAMERA[0] + 16, 118)
 MAP_NAMES = ("measured", "predicted", "error")
 MAP_COLUMN_GAP = 60
 WINDOW_COLOUR = (37, 37, 38)
 """The viewport is cleared to this colour and the full-screen window draws no background of its own:
 under software OpenGL a blended full-screen quad costs about half of an otherwise empty frame."""
-REFRESH_PERIODS_S = {"plots": 0.2, "tables": 0.1}
+REFRESH_PERIODS_S = {"plots": 0.2, "tables": 0.1, "atlas": 0.5}
 """The plots and the text tables are refreshed at most this often (every frame would only cost CPU)."""
 MAX_FPS = 60
 """Frames are rendered at most this often (about a display's refresh rate; content changes at 30 Hz)."""
@@ -167,6 +169,7 @@ class Dashboard:
                                     with dpg.group(horizontal=True, horizontal_spacing=HAND_LABEL_SPACING):
                                         dpg.add_text("left hand")
                                         dpg.add_text("right hand")
+                    self.atlas = AtlasPanel(*ATLAS)
                 with dpg.group():
                     build_controls(self)
                     self.lamps = ContactLamps(*CONTACT)
@@ -221,8 +224,9 @@ class Dashboard:
     def _find_panels(self) -> None:
         """Record the panels' screen rectangles once dearpygui has laid them out."""
         rects = {}
-        for name in (*VIEW_NAMES, *MAP_NAMES):
-            (x, y), (w, h) = dpg.get_item_rect_min(f"image_{name}"), dpg.get_item_rect_size(f"image_{name}")
+        items = {**{name: f"image_{name}" for name in (*VIEW_NAMES, *MAP_NAMES)}, "atlas": self.atlas.drawlist}
+        for name, item in items.items():
+            (x, y), (w, h) = dpg.get_item_rect_min(item), dpg.get_item_rect_size(item)
             rects[name] = (int(x), int(y), int(w), int(h))
         if all(w > 0 and h > 0 for _, _, w, h in rects.values()):
             self.panel_rects = rects
@@ -262,6 +266,13 @@ class Dashboard:
         changed = new_snapshot | new_maps
         if self._refresh_due("plots") and self._changed("history", tuple(v.tobytes() for v in state.history.values())):
             self.plots.update(state.history)
+            changed = True
+        if self._changed("atlas", state.atlas):
+            self.atlas.show_atlas(state.atlas, state.atlas_note)
+            changed = True
+        running = (state.setting, None if state.step_p99_ms is None else round(state.step_p99_ms, 1))
+        if self._refresh_due("atlas") and self._changed("running", running):
+            self.atlas.update(*running)
             changed = True
         if self._refresh_due("tables"):
             changed |= self._tables.update(state, self.note, self.stats.rate.rate())

@@ -17,6 +17,8 @@ from touchanything.viz.dashboard.dashboard_state import DashboardSession, Sessio
 from touchanything.viz.hand_projection import pose_label
 
 SPEEDS = ("0.25", "0.5", "1", "2", "4")
+RATES = ("1", "2", "3")
+"""Predict every k-th frame (the atlas's prediction rates)."""
 METRIC_ROWS = (("temporal_accuracy", "temporal accuracy"), ("contact_iou", "contact IoU"),
                ("volumetric_iou", "volumetric IoU"), ("mae", "MAE"))
 STAGES = ((POSE_STAGE, "pose"), ("preprocess", "preprocess"), ("encode", "encode"), ("head", "head"),
@@ -65,6 +67,9 @@ def build_controls(dash: ControlledDashboard) -> None:
         dpg.add_text("model")
         dpg.add_combo(session.models(), default_value=model, tag="model", width=150, callback=lambda: _set_model(dash))
         dpg.add_combo(session.tiers(), default_value=tier, tag="tier", width=120, callback=lambda: _set_model(dash))
+        dpg.add_text("every")
+        dpg.add_combo(RATES, default_value=str(session.current_rate()), tag="rate", width=45,
+                      callback=lambda s, value: dash.session.set_rate(int(value)))
     with dpg.group(horizontal=True):
         dpg.add_slider_float(label="contact threshold", tag="threshold", default_value=session.threshold,
                              min_value=0.02, max_value=0.5, width=140, format="%.2f",

@@ -9,6 +9,7 @@ import numpy as np
 
 from touchanything.devices.snapshot import Snapshot
 from touchanything.inference.engine.prediction import Prediction
+from touchanything.inference.evaluation.atlas import AtlasRow
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,10 @@ class SessionState:
     cumulative: official metric dicts (None without ground truth; NaN = undefined); history: recent
     series by name (volumetric_iou, contact_iou rolling; latency_ms), oldest first; stage_ms: mean
     engine stage times over recent steps; engine_fps: predictions per second; sources: device rows;
-    playback: None in live mode; model: the running model and tier; message: the latest notice."""
+    playback: None in live mode; model: the running model and tier; message: the latest notice; setting: the
+    running engine setting's name (`nano/onnx-int8/all`); step_p99_ms: p99 of the engine's per-frame step time
+    over its recent predictions (None before enough of them); atlas: the speed/accuracy atlas's settings of the
+    models here (empty, with `atlas_note` saying why, when there is none)."""
 
     snapshot: Snapshot | None = None
     prediction: Prediction | None = None
@@ -61,6 +65,10 @@ class SessionState:
     model: str = ""
     message: str = ""
     recording: str | None = None
+    setting: str = ""
+    step_p99_ms: float | None = None
+    atlas: tuple[AtlasRow, ...] = ()
+    atlas_note: str = ""
 
 
 class DashboardSession(Protocol):
@@ -92,6 +100,10 @@ class DashboardSession(Protocol):
     def current_model(self) -> tuple[str, str]: ...
 
     def set_model(self, model: str, tier: str) -> None: ...
+
+    def current_rate(self) -> int: ...
+
+    def set_rate(self, every: int) -> None: ...
 
     def toggle_recording(self) -> None: ...
 
