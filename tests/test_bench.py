@@ -10,6 +10,7 @@ import torch
 
 from touchanything.app.cli import build_parser, main
 from touchanything.app.sessions.bundled import sample_episodes
+from touchanything.devices.errors import UserError
 from touchanything.inference.evaluation.bench import BenchPlan, bench_model, naive_latency
 from touchanything.inference.evaluation.bench_accuracy import HeldOut, agreement_sums
 from touchanything.inference.evaluation.bench_data import latency_clip
@@ -139,3 +140,46 @@ def test_the_gpu_bench_runs_its_settings_on_the_cpu_eagerly():
     assert set(naive) == {"nano fp32", "nano bf16"} and all(v > 0 for v in naive.values())
     table = gpu_markdown({"machine": "test", "device": "cpu", "rows": rows, "naive": naive})
     assert table.count("| nano/torch-") == 8 and "| nano fp32 |" in table and "eager |" in table
+
+
+def test_held_out_trajectories_come_from_a_dataset_roots_split_lists(tmp_path):
+    from conftest import write_episode
+    from touchanything.inference.evaluation.bench_data import held_out_paths
+
+    for name in ("a", "b", "c"):
+        write_episode(tmp_path / "Lab" / "press" / name, frames=16)
+    split = {"train": ["Lab/press/c"], "val": [], "test_seen": ["Lab/press/a"], "test_unseen": ["Lab/press/b"]}
+    (tmp_path / "split.json").write_text(json.dumps(split))
+    assert held_out_paths(tmp_path) == [(tmp_path / "Lab/press/a", "test_seen"), (tmp_path / "Lab/press/b", "test_unseen")]
+    assert held_out_paths(tmp_path, ["train"]) == [(tmp_path / "Lab/press/c", "train")]
+    with pytest.raises(UserError, match="unknown split 'test'"):
+        held_out_paths(tmp_path, ["test"])
+    with pytest.raises(UserError, match="the val list"):
+        held_out_paths(tmp_path, ["val"])
+    (tmp_path / "split.json").write_text(json.dumps({**split, "test_unseen": ["Lab/press/b", "Lab/press/gone"]}))
+    with pytest.raises(UserError, match="1 listed trajectories do not exist"):
+        held_out_paths(tmp_path)
+    # the bundled sample's split.json names the HDF5 files `convert` would write: it is a folder of episodes
+    assert {split for _, split in held_out_paths(sample_episodes()[0].parents[2])} == {"episodes"}
+    with pytest.raises(UserError, match="--splits needs a dataset root"):
+        held_out_paths(sample_episodes()[0].parents[2], ["test_seen"])
+
+
+def test_worker_processes_measure_what_one_process_does():
+    """Accuracy replays dealt out to two worker processes give the same per-trajectory metrics, in the same
+    order, as one process (the bundled nano, ONNX int8 included)."""
+    from touchanything.app.sessions.bundled import bundled_models
+    from touchanything.inference.model.checkpoint import load_model
+
+    checkpoint = bundled_models()["nano"]
+    pairs = [(path, "episodes") for path in sample_episodes()[:3]]
+    plan = BenchPlan(True, rounds=1, per_round=2, naive_steps=1)
+    clip = latency_clip(pairs[0][0], 10)
+    one, two = (bench_model("nano", load_model(checkpoint), HeldOut(pairs, frames=30, workers=w), clip, plan,
+                            progress=lambda message: None, checkpoint=checkpoint) for w in (1, 2))
+    assert one.trajectories == two.trajectories and len(one.trajectories) == 3
+    for a, b in zip(one.rows, two.rows):
+        assert a["setting"] == b["setting"] and a["trajectories"] == b["trajectories"] == 3
+        np.testing.assert_allclose(a["per_trajectory"]["volumetric_iou"], b["per_trajectory"]["volumetric_iou"], atol=1e-6)
+        np.testing.assert_allclose(a["per_trajectory"]["contact_iou"], b["per_trajectory"]["contact_iou"], atol=1e-6)
+        assert a["agreement_viou"] == pytest.approx(b["agreement_viou"], abs=1e-6)

@@ -68,17 +68,21 @@ def episode_paths(data: Path) -> list[Path]:
 
 def held_out_paths(data: Path, splits: list[str] | None = None) -> list[tuple[Path, str]]:
     """(trajectory, split) pairs: the `splits` lists (default `HELD_OUT_SPLITS`) of DATA/split.json when DATA is a
-    dataset root with one, else every episode under DATA with the split `episodes` (then `splits` is an error).
-    UserError before any work for an unknown or empty list, or a listed trajectory that does not exist."""
+    dataset root — its split file lists trajectories that exist —, else every episode under DATA with the split
+    `episodes` (then `splits` is an error). A split file none of whose trajectories exists (a raw simulator root:
+    it names the HDF5 files `convert` will write) leaves DATA a folder of episodes. UserError before any work for
+    an unknown or empty list, or a dataset root that lists some trajectories that do not exist."""
     split_file = Path(data) / SPLIT_FILE
-    if not split_file.is_file():
+    lists = read_split(split_file) if split_file.is_file() else None
+    if lists is not None and not any(episode_exists(p) for paths in lists.values() for p in paths):
+        lists = None
+    if lists is None:
         if splits:
-            raise UserError(f"--splits needs a dataset root with a {SPLIT_FILE}; {data} has none")
+            raise UserError(f"--splits needs a dataset root whose {SPLIT_FILE} lists its trajectories; {data} has none")
         return [(path, PLAIN_FOLDER) for path in episode_paths(data)]
     unknown = [name for name in splits or () if name not in SPLIT_KEYS]
     if unknown:
         raise UserError(f"unknown split {unknown[0]!r}; choose from {', '.join(SPLIT_KEYS)}")
-    lists = read_split(split_file)
     pairs = [(path, name) for name in splits or HELD_OUT_SPLITS for path in lists[name]]
     if not pairs:
         raise UserError(f"{split_file}: the {' and '.join(splits or HELD_OUT_SPLITS)} list(s) are empty")

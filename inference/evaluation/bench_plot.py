@@ -69,7 +69,7 @@ def _panel(ax, rows: list[dict], metric: str, title: str, p99_target: float | No
     ax.xaxis.set_minor_formatter(matplotlib.ticker.ScalarFormatter())
     ax.tick_params(axis="x", which="minor", labelsize=7)
     if points:
-        values = [y for _, y in points]
+        values = [y for _, y in points] + [v for r in rows for v in (r.get(f"{metric}_ci95") or ()) if v is not None]
         low, high = min(values), max(values)
         pad = max(MIN_ACCURACY_SPAN - (high - low), 0.0) / 2 + 0.08 * (high - low)
         ax.set_ylim(low - pad, high + pad)
