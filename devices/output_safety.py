@@ -24,6 +24,7 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from touchanything.devices.errors import UserError
+from touchanything.devices.input_paths import collect_inputs
 
 PARTIAL = ".partial-"
 """In the name of every temporary output: `.<name>.partial-<pid>` beside the output (hidden, and with no suffix
@@ -45,27 +46,28 @@ def named(*names: str) -> Callable[[Path], bool]:
     return lambda path: path.name in names and path.is_file()
 
 
-def _inputs(inputs: Iterable[Path | None]) -> list[tuple[Path, Path]]:
-    """(as given, resolved) of every input given (None: an optional input not used)."""
-    return [(Path(p), Path(p).resolve()) for p in inputs if p is not None]
-
-
 def check_output(out: Path, inputs: Iterable[Path | None] = (), overwrite: bool = False, *,
                  own: Callable[[Path], bool] = _never, folder: bool = False, whole: bool = False) -> None:
     """Rule 1 for the output `out` of a command reading `inputs` (files and folders). `own(path)`: an existing
     path is an earlier output of the same kind (replaced without `overwrite`). `folder`: `out` is a folder the
     command writes named files into (check each of them too); `whole`: a folder the command builds as a whole
     (an existing non-empty one is replaced only with `overwrite`, never when it holds an input). Raises
-    UserError (one line); creates nothing."""
+    UserError (one line); creates nothing. Inputs are every real path they resolve to, the targets of the
+    links inside input folders included (`input_paths`), and an output that is a hard link of an input file
+    is that input."""
     out = Path(out)
     target = out.resolve()
-    for given, source in _inputs(inputs):
-        if target == source:
+    found = collect_inputs(inputs)
+    if (same := found.same_file(target)) is not None:
+        raise UserError(f"{out}: is the input {same.named()} under another name (a hard link); choose another output")
+    for source in found.paths:
+        real, given = source.resolved, source.named()
+        if target == real:
             raise UserError(f"{out}: is an input of this command ({given}); choose another output")
-        if whole and (target in source.parents or (source in target.parents and target.is_dir())):
-            raise UserError(f"{out}: {'holds' if target in source.parents else 'is a folder of'} the input {given}; "
+        if whole and (target in real.parents or (real in target.parents and target.is_dir())):
+            raise UserError(f"{out}: {'holds' if target in real.parents else 'is a folder of'} the input {given}; "
                             "choose a folder outside it")
-        if source in target.parents and target.exists() and not target.is_dir() and not own(target):
+        if real in target.parents and target.exists() and not target.is_dir() and not own(target):
             raise UserError(f"{out}: would replace a file of the input {given} that touchanything did not write; "
                             "choose a path outside it")
     if folder or whole:
