@@ -108,8 +108,11 @@ def check_writable(folder: Path) -> None:
 
 
 def describe(exc: OSError) -> str:
-    """The OS's reason of an OSError ("No space left on device"), else its text."""
-    return exc.strerror or str(exc)
+    """The OS's reason of an OSError ("No space left on device": for its error number, also when a library such
+    as HDF5 put its own text in the message), else its first line."""
+    if exc.errno:
+        return os.strerror(exc.errno)
+    return exc.strerror or (str(exc).splitlines() or [type(exc).__name__])[0]
 
 
 def temporary_path(path: Path) -> Path:

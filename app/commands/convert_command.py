@@ -6,6 +6,7 @@ from pathlib import Path
 
 from touchanything.app.sessions.progress_bar import ProgressBar
 from touchanything.devices.episodes.dataset_conversion import CONVERSION_REPORT, QUALITY_REPORT, convert_dataset
+from touchanything.devices.output_safety import add_overwrite_argument
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -14,7 +15,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("out_root", type=Path, help="output folder for <Scene>/<task>/<trajectory_id>.hdf5")
     parser.add_argument("--workers", type=int, default=1, help="trajectories converted in parallel (default 1)")
     parser.add_argument("--compression-level", type=int, default=4, help="gzip level 0–9, 0 = none (default 4)")
-    parser.add_argument("--skip-existing", action="store_true", help="leave trajectories already converted")
+    parser.add_argument("--skip-existing", action="store_true",
+                        help="leave trajectories this command already converted from the same episode (complete ones: "
+                             "they carry its mark)")
+    add_overwrite_argument(parser, "a file at a trajectory's path that is not this command's conversion of that episode")
     parser.set_defaults(run=run)
 
 
@@ -32,7 +36,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         results = convert_dataset(args.raw_root, args.out_root, args.workers, args.compression_level,
                                   args.skip_existing, on_result=progress,
-                                  on_start=lambda total: bars.append(ProgressBar(total=total, unit="traj", desc="convert")))
+                                  on_start=lambda total: bars.append(ProgressBar(total=total, unit="traj", desc="convert")),
+                                  overwrite=args.overwrite)
     finally:
         for bar in bars:
             bar.close()

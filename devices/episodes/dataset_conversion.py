@@ -9,7 +9,8 @@ from pathlib import Path
 
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE
 from touchanything.devices.episodes.episode_loader import find_raw_episodes
-from touchanything.devices.episodes.hdf5_convert import ConversionResult, convert_trajectory, output_path
+from touchanything.devices.episodes.hdf5_convert import ConversionResult, convert_trajectory, output_path, source_name
+from touchanything.devices.episodes.hdf5_output import written_from
 from touchanything.devices.errors import UserError, failure_line
 from touchanything.devices.output_safety import check_report_folder, replacing, write_text
 
@@ -20,9 +21,11 @@ QUALITY_REPORT = "quality_report.txt"
 def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compression_level: int = 4,
                     skip_existing: bool = False,
                     on_result: Callable[[ConversionResult], None] | None = None,
-                    on_start: Callable[[int], None] | None = None) -> list[ConversionResult]:
+                    on_start: Callable[[int], None] | None = None, overwrite: bool = False) -> list[ConversionResult]:
     """Convert every trajectory under `raw_root`; one bad trajectory never stops the others. `on_start(n)`:
-    once the inputs and outputs were checked, with the number of trajectories found."""
+    once the inputs and outputs were checked, with the number of trajectories found. An existing trajectory is
+    replaced (or with `skip_existing` left alone) only when this project converted it from the same episode
+    (`hdf5_output`'s mark); anything else at a target path is refused before any work unless `overwrite`."""
     raw_root, out_root = Path(raw_root), Path(out_root)
     if not raw_root.is_dir():
         raise UserError(f"{raw_root}: raw root folder not found")
@@ -34,15 +37,9 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
     if not folders:
         raise UserError(f"{raw_root}: no trajectories found (folders holding chest.mp4, up to 4 levels deep)")
     check_report_folder(out_root, (CONVERSION_REPORT, QUALITY_REPORT), (raw_root,))
+    results, todo = plan(folders, raw_root, out_root, skip_existing, overwrite)
     on_start and on_start(len(folders))
     started = time.perf_counter()
-    results, todo = [], []
-    for folder in folders:
-        target = output_path(folder, raw_root, out_root)
-        if skip_existing and target.exists():
-            results.append(ConversionResult(folder, target, "skipped"))
-        else:
-            todo.append((folder, target))
     for result in results:
         on_result and on_result(result)
     for result in _run(todo, workers, compression_level):
@@ -54,6 +51,28 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
     return results
 
 
+def plan(folders: list[Path], raw_root: Path, out_root: Path, skip_existing: bool,
+         overwrite: bool) -> tuple[list[ConversionResult], list[tuple[Path, Path, str]]]:
+    """(skipped results, (folder, target, source) to convert). UserError naming the first target that exists but
+    is not this project's conversion of that episode (another file, a cut-short or another episode's
+    trajectory), unless `overwrite`."""
+    skipped, todo, foreign = [], [], []
+    for folder in folders:
+        target, source = output_path(folder, raw_root, out_root), source_name(folder, raw_root)
+        ours = target.exists() and written_from(target) == source
+        if ours and skip_existing:
+            skipped.append(ConversionResult(folder, target, "skipped"))
+            continue
+        if target.exists() and not ours and not overwrite:
+            foreign.append(target)
+        todo.append((folder, target, source))
+    if foreign:
+        more = f" (and {len(foreign) - 1} more)" if len(foreign) > 1 else ""
+        raise UserError(f"{foreign[0]}: exists and is not this project's conversion of that episode{more}; pass "
+                        "--overwrite to replace it")
+    return skipped, todo
+
+
 def copy_split(raw_root: Path, out_root: Path) -> None:
     """A `split.json` shipped with the raw data moves into the HDF5 root (as the official release does);
     an existing one there is kept."""
@@ -63,13 +82,14 @@ def copy_split(raw_root: Path, out_root: Path) -> None:
             shutil.copyfile(source, temporary)
 
 
-def _run(todo: list[tuple[Path, Path]], workers: int, level: int):
+def _run(todo: list[tuple[Path, Path, str]], workers: int, level: int):
     if workers == 1 or len(todo) <= 1:
-        for folder, target in todo:
-            yield convert_trajectory(folder, target, level)
+        for folder, target, source in todo:
+            yield convert_trajectory(folder, target, level, source)
         return
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(convert_trajectory, folder, target, level): (folder, target) for folder, target in todo}
+        futures = {pool.submit(convert_trajectory, folder, target, level, source): (folder, target)
+                   for folder, target, source in todo}
         for future in as_completed(futures):
             try:
                 yield future.result()

@@ -24,10 +24,12 @@ from touchanything.devices.episodes.hdf5_episode import (
     WILOR_KEYS,
     WILOR_VALID_KEYS,
 )
+from touchanything.devices.episodes.hdf5_output import hdf5_output
 from touchanything.devices.episodes.raw_episode import MASKS_FILE, QUALITY_FILE, REQUIRED_FILES, WILOR_FILE, open_raw_episode
 from touchanything.devices.errors import DataError, failure_line
-from touchanything.devices.output_safety import replacing
 
+CONVERTER = "touchanything convert"
+"""The completion mark's value in the trajectories `convert` writes (`hdf5_output`)."""
 DUPLICATE_ISSUE_RATIO = 0.20
 
 
@@ -145,8 +147,14 @@ def _quality(episode: Episode, problems: list[str]) -> dict:
         return {"left": -1.0, "right": -1.0}
 
 
-def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4) -> ConversionResult:
-    """Convert one raw folder; never raises for bad data (the result says what failed)."""
+def source_name(folder: Path, raw_root: Path) -> str:
+    """The episode's place under the raw root (`Scene/task/id`): what its trajectory is marked as written from."""
+    return Path(os.path.abspath(folder)).relative_to(os.path.abspath(raw_root)).as_posix()
+
+
+def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4, source: str = "") -> ConversionResult:
+    """Convert one raw folder into `out_path`, marked as written from `source` (default: the folder's name);
+    never raises for bad data (the result says what failed)."""
     started = time.perf_counter()
     result = ConversionResult(Path(folder), Path(out_path), "failed")
     missing = [name for name in REQUIRED_FILES if not (Path(folder) / name).exists()]
@@ -161,7 +169,7 @@ def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4)
             if unreadable or episode.num_frames == 0:
                 raise DataError(folder, None, f"cannot convert: unreadable {', '.join(unreadable) or 'frames (0 frames)'}")
             result.quality = _quality(episode, result.problems)
-            with replacing(Path(out_path)) as partial, h5py.File(partial, "w") as file:
+            with hdf5_output(Path(out_path), CONVERTER, source or Path(folder).name) as file:
                 frames = _write_images(file, episode, compression_level)
                 if frames == 0:  # a trajectory of no frame is not one (its readers refuse it)
                     raise DataError(folder, None, "cannot convert: the videos decode no frame")
