@@ -82,13 +82,15 @@ def check_output(out: Path, inputs: Iterable[Path | None] = (), overwrite: bool 
     check_writable(target if folder or whole else target.parent)
 
 
-def check_report_folder(out: Path, names: Iterable[str], inputs: Iterable[Path | None] = ()) -> None:
+def check_report_folder(out: Path, names: Iterable[str], inputs: Iterable[Path | None] = (),
+                        keep: bool = False, overwrite: bool = False) -> None:
     """`check_output` for a folder the command writes files of fixed `names` into (a report folder): the
-    folder, then each file (an earlier one of that name is replaced; an input never is)."""
+    folder, then each file (an earlier one of that name is replaced; an input never is). `keep`: an earlier
+    one is replaced only with `overwrite` (results a user may want to keep)."""
     inputs = list(inputs)
     check_output(out, inputs, folder=True)
     for name in names:
-        check_output(Path(out) / name, inputs, own=named(name))
+        check_output(Path(out) / name, inputs, overwrite, own=_never if keep else named(name))
 
 
 def check_writable(folder: Path) -> None:

@@ -156,3 +156,18 @@ def test_eval_sharded_over_two_processes_equals_one(sim_hdf5_root, tiny_checkpoi
     one, two = (json.loads((tmp_path / name / "results.json").read_text()) for name in ("one", "two"))
     assert [row["path"] for row in two["results"][0]["trajectories"]] == files
     assert json.dumps(one["results"], sort_keys=True) == json.dumps(two["results"], sort_keys=True)
+
+
+def test_eval_keeps_earlier_results_unless_told_to_replace_them(sim_hdf5_root, tiny_checkpoint, tmp_path, capsys):
+    """A run (here one where every trajectory fails) never replaces an earlier run's results without --overwrite."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "results.md").write_text("good earlier results\n")
+    argv = ["eval", "--checkpoint", str(tiny_checkpoint), "--data", str(sim_hdf5_root), "--split",
+            nonempty_split(sim_hdf5_root), "--views", "ego", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"{out / 'results.md'}: exists; pass --overwrite to replace it" in err and len(err.strip().splitlines()) == 1
+    assert (out / "results.md").read_text() == "good earlier results\n" and not (out / "results.json").exists()
+    assert main([*argv, "--overwrite"]) == 0
+    assert "| views | scene |" in (out / "results.md").read_text()

@@ -69,12 +69,13 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="also evaluate baseline checkpoints on the same trajectories and views, their rows beside the "
                              "model's (given without a checkpoint: the bundled baselines, "
                              f"{' and '.join(f'models/{name}' for name in BASELINES)})")
-    parser.add_argument("--out", type=Path, help="folder for results.json and results.md")
+    parser.add_argument("--out", type=Path, help="folder for results.json and results.md (results of an earlier run "
+                                                 "there are replaced only with --overwrite: choose a new folder to keep them)")
     parser.add_argument("--video", action="store_true", help="also write a comparison video per trajectory into OUT")
     parser.add_argument("--hand3d", action="store_true", help="with --video: add the pressure painted on 3D hands "
                                                               "(measured | predicted) to the videos (default: off)")
     add_rerun_arguments(parser, serve=False)
-    add_overwrite_argument(parser, "--rerun")
+    add_overwrite_argument(parser, "--out's results.json and results.md, or --rerun")
     parser.set_defaults(run=run)
 
 
@@ -242,7 +243,7 @@ def run(args: argparse.Namespace) -> int:
     inputs = (args.checkpoint, args.config, args.data, args.split_file, *(args.baselines or ()),
               args.pose_only_baseline if isinstance(args.pose_only_baseline, Path) else None)
     if args.out:
-        check_report_folder(args.out, RESULT_FILES, inputs)
+        check_report_folder(args.out, RESULT_FILES, inputs, keep=True, overwrite=args.overwrite)
     if args.rerun is not None:
         check_rrd_output(args.rerun, args.overwrite, inputs)
     files = split_files(args.data, args.split, args.split_file, args.num_traj)
