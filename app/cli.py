@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import argparse
+import errno
+import signal
 import sys
 
 from touchanything.app.commands import (
@@ -22,7 +24,7 @@ from touchanything.app.commands import (
     split_command,
     train_command,
 )
-from touchanything.devices.errors import UserError
+from touchanything.devices.errors import Terminated, UserError
 
 COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command, train_command,
             eval_command, replay_command, pose_command, live_command, record_command, devices_command, export_onnx_command,
@@ -45,14 +47,31 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
+    previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.run(args)
     except UserError as exc:
         print(f"touchanything {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        if exc.errno != errno.ENAMETOOLONG:
+            raise
+        print(f"touchanything {args.command}: error: {exc.filename}: a name in this path is longer than the file "
+              "system allows", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"touchanything {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Terminated:
+        print(f"touchanything {args.command}: terminated", file=sys.stderr)
+        return 128 + signal.SIGTERM
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _terminate(signum: int, frame: object) -> None:
+    """SIGTERM: stop as Ctrl-C does (outputs being written are removed on the way out)."""
+    raise Terminated
 
 
 if __name__ == "__main__":

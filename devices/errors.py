@@ -54,3 +54,8 @@ def require_fraction(name: str, value: float) -> float:
     if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
         raise UserError(f"{name} must be a number in [0, 1], got {value}")
     return value
+
+
+class Terminated(BaseException):
+    """The process was asked to stop by a signal (SIGTERM): raised in the main thread, like KeyboardInterrupt for
+    Ctrl-C, so that every half-written output is removed on the way out (`app.cli.main` installs the handler)."""

@@ -7,9 +7,12 @@
    output goes is checked for writability (a probe file, created and removed: permissions, read-only
    mounts, a file where a folder should be).
 2. Every file is written through `replacing(path)` (or `write_text`): to a hidden temporary file in the
-   same folder, renamed over `path` only when complete; on any error, disk full included, the temporary
-   file is removed and an OSError becomes one line (UserError) naming the output. A folder built as a whole
-   goes through `replacing_folder(out)` the same way.
+   same folder, synced to disk and renamed over `path` only when complete (the folder synced after the
+   rename, so that a power cut after the command reported success loses nothing); on any error, disk full
+   included, the temporary file is removed and an OSError becomes one line (UserError) naming the output. A
+   folder built as a whole goes through `replacing_folder(out)` the same way. The temporary files a process
+   that no longer runs left in the output's folder (killed before it could clean up) are removed first, each
+   named on stderr.
 
 The only exceptions are the recorder's episode folders, written live so that a crash keeps what was
 recorded (they are still checked by rule 1)."""
@@ -18,7 +21,9 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import re
 import shutil
+import sys
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -29,6 +34,8 @@ from touchanything.devices.input_paths import collect_inputs
 PARTIAL = ".partial-"
 """In the name of every temporary output: `.<name>.partial-<pid>` beside the output (hidden, and with no suffix
 of its own, so no reader takes a half-written `.hdf5` or `.mp4` for data)."""
+_LEFT_BEHIND = re.compile(r"\..+\.(?:partial|old)-([0-9]+)")
+"""A temporary output (`.<name>.partial-<pid>`) or a replaced folder awaiting removal (`.<name>.old-<pid>`)."""
 
 
 def add_overwrite_argument(parser: argparse.ArgumentParser, what: str) -> None:
@@ -56,6 +63,7 @@ def check_output(out: Path, inputs: Iterable[Path | None] = (), overwrite: bool 
     links inside input folders included (`input_paths`), and an output that is a hard link of an input file
     is that input."""
     out = Path(out)
+    check_name_lengths(out)
     target = out.resolve()
     found = collect_inputs(inputs)
     if (same := found.same_file(target)) is not None:
@@ -80,6 +88,24 @@ def check_output(out: Path, inputs: Iterable[Path | None] = (), overwrite: bool 
     elif target.exists() and not overwrite and not own(target):
         raise UserError(f"{out}: exists; pass --overwrite to replace it")
     check_writable(target if folder or whole else target.parent)
+
+
+def check_name_lengths(out: Path) -> None:
+    """UserError when a name in `out`, or the temporary name its file is first written under, is longer than the
+    file system of its nearest existing folder allows (checked before any work; the OS would refuse it after)."""
+    existing = Path(out)
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    try:
+        limit = os.pathconf(existing if existing.is_dir() else existing.parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    names = [*Path(out).parts[1 if Path(out).is_absolute() else 0:], temporary_path(out).name]
+    longest = max(names, key=lambda name: len(os.fsencode(name)))
+    if len(os.fsencode(longest)) > limit:
+        what = "the temporary name it is written under" if longest == names[-1] else f"the name {longest[:24]}…"
+        raise UserError(f"{out}: {what} is {len(os.fsencode(longest))} bytes, longer than the file system allows "
+                        f"({limit}); choose a shorter name")
 
 
 def check_report_folder(out: Path, names: Iterable[str], inputs: Iterable[Path | None] = (),
@@ -132,17 +158,67 @@ def _remove(path: Path) -> None:
             path.unlink(missing_ok=True)
 
 
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process: alive
+        return True
+    return True
+
+
+def remove_left_behind(folder: Path) -> list[Path]:
+    """Remove the temporary outputs that processes which no longer run left in `folder` (killed before they
+    could clean up), naming each on stderr; a running process's are left alone. Returns what was removed."""
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return []
+    removed = []
+    for entry in entries:
+        match = _LEFT_BEHIND.fullmatch(entry.name)
+        if match and int(match.group(1)) != os.getpid() and not _alive(int(match.group(1))):
+            _remove(Path(entry.path))
+            removed.append(Path(entry.path))
+            print(f"removed {entry.path}: left half-written by an interrupted run (process {match.group(1)})",
+                  file=sys.stderr)
+    return removed
+
+
+def sync(path: Path) -> None:
+    """Flush `path` to disk: a file's data, or every file and folder entry under a folder."""
+    if Path(path).is_dir():
+        for root, _, files in os.walk(path):
+            for name in files:
+                _fsync(Path(root) / name)
+            _fsync(Path(root))
+    else:
+        _fsync(Path(path))
+
+
+def _fsync(path: Path) -> None:
+    descriptor = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
+
+
 @contextlib.contextmanager
 def replacing(path: Path) -> Iterator[Path]:
-    """Rule 2: yields the temporary path to write; when the block ends it is renamed over `path` (its folder
-    is created first). On any exception the temporary file is removed and `path` is left as it was; an
-    OSError (no space, file too large, read-only…) is raised as a UserError naming `path`."""
+    """Rule 2: yields the temporary path to write; when the block ends it is synced and renamed over `path`
+    (its folder is created first, and synced after). On any exception the temporary file is removed and `path`
+    is left as it was; an OSError (no space, file too large, read-only…) is raised as a UserError naming `path`."""
     path = Path(path)
     temporary = temporary_path(path)
     with _removed_on_failure(temporary, path):
         path.parent.mkdir(parents=True, exist_ok=True)
+        remove_left_behind(path.parent)
         yield temporary
+        sync(temporary)
         os.replace(temporary, path)
+        _fsync(path.parent)
 
 
 @contextlib.contextmanager
@@ -173,7 +249,9 @@ def replacing_folder(out: Path, overwrite: bool = False) -> Iterator[Path]:
     _remove(temporary)
     with _removed_on_failure(temporary, out):
         temporary.mkdir(parents=True)
+        remove_left_behind(out.parent)
         yield temporary
+        sync(temporary)
         if out.exists():
             if not overwrite and any(out.iterdir()):
                 raise UserError(f"{out}: folder is not empty; pass --overwrite to replace it")
@@ -183,3 +261,4 @@ def replacing_folder(out: Path, overwrite: bool = False) -> Iterator[Path]:
             _remove(old)
         else:
             os.replace(temporary, out)
+        _fsync(out.parent)

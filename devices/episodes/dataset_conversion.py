@@ -90,12 +90,16 @@ def _run(todo: list[tuple[Path, Path, str]], workers: int, level: int):
     with ProcessPoolExecutor(max_workers=workers) as pool:
         futures = {pool.submit(convert_trajectory, folder, target, level, source): (folder, target)
                    for folder, target, source in todo}
-        for future in as_completed(futures):
-            try:
-                yield future.result()
-            except Exception as exc:  # noqa: BLE001 - a worker that died (killed, out of memory) fails its trajectory
-                folder, target = futures[future]
-                yield ConversionResult(folder, target, "failed", error=failure_line(folder, exc))
+        try:
+            for future in as_completed(futures):
+                try:
+                    yield future.result()
+                except Exception as exc:  # noqa: BLE001 - a worker that died (killed, out of memory) fails its trajectory
+                    folder, target = futures[future]
+                    yield ConversionResult(folder, target, "failed", error=failure_line(folder, exc))
+        except BaseException:  # Ctrl-C, SIGTERM: no trajectory starts any more; the running ones end whole
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
 
 
 def summary_line(results: list[ConversionResult], wall_seconds: float) -> str:
