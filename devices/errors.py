@@ -49,6 +49,17 @@ def require_finite_positive(name: str, value: float) -> float:
     return value
 
 
+MAX_SEED = 2**32 - 1
+"""The largest seed a command takes (every numpy generator, the legacy one included, takes 0 … 2³² − 1)."""
+
+
+def require_seed(name: str, value: int) -> int:
+    """`value` when it is a whole number 0 … MAX_SEED; else UserError naming the setting and value."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_SEED:
+        raise UserError(f"{name} must be an integer 0–{MAX_SEED}, got {value}")
+    return value
+
+
 def require_fraction(name: str, value: float) -> float:
     """`value` when it is a number in [0, 1]; else UserError naming the setting and value (NaN is refused)."""
     if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):

@@ -198,7 +198,7 @@ def test_a_disk_error_is_reported_and_what_was_written_is_kept(tmp_path):
     while recorder.counters.written + recorder.counters.failed < 20 and time.monotonic() < deadline:
         time.sleep(0.01)
     assert "failed: No space left on device" in recorder.status() and recorder.error.startswith("No space left")
-    kept = r"failed: No space left on device \(.*vive_poses.json\); the 10 frames written before are kept"
+    kept = r"failed: No space left on device \(.*vive_poses.json\); 10 of the 10 frames written before replay"
     with pytest.raises(UserError, match=kept):
         recorder.stop()
     assert (recorder.counters.written, recorder.counters.failed) == (10, 10)

@@ -78,10 +78,12 @@ class ReplaySummary:
         out = [f"frames    {self.frames} written, {self.predicted} with a prediction{no_pose}", self.pose_line()]
         if self.metrics is None:
             out.append("metrics   n/a (the episode has no ground-truth pressure)")
+        elif not self.predicted:
+            out.append("metrics   n/a (no frame had a hand pose to predict from)")
         else:
             out.append("metrics   " + ", ".join(f"{k} {metric_text(v)}" for k, v in self.metrics.items()
                                                 if k != "mae_left" and k != "mae_right"))
-        if self.lamps_shown:
+        if self.lamps_shown and self.predicted:
             out.append(self.lamp_line())
         if self.step_ms:
             step, latency = np.percentile(self.step_ms, [50, 99]), np.percentile(self.latency_ms, [50, 99])

@@ -45,6 +45,7 @@ def replay_to_video(path: Path, choice: ModelChoice, views: tuple[str, ...], out
         source = ReplaySource(episode, ReplayConfig(speed=None, views=views, pose_source=pose_source))
         caption = tuple(line for line in (model_name(choice), illustrative_note(choice, pose_source == "camera")) if line)
         print("\n".join(episode_lines(episode)))
+        known = len(episode.problems)
         recording = rerun and open_recording(rerun, f"replay {episode_name(episode)}", session_properties(choice, engine, episode))
         try:
             with tqdm(total=episode.num_frames, unit="frame", desc="replay") as bar:
@@ -54,6 +55,10 @@ def replay_to_video(path: Path, choice: ModelChoice, views: tuple[str, ...], out
             if recording is not None:
                 recording.close()  # what was logged stays readable
             raise
+        found = episode.problems[known:]  # what reading the frames found (a damaged chunk, an undecodable frame)
+    if found:
+        print(f"problems  {len(found)} more found while replaying")
+        print("\n".join(f"  - {problem}" for problem in found))
     print(f"model     {model_label(choice, engine)}, {engine.runtime.capture}")
     print(f"setting   {setting_name(choice, views)}")
     if len(caption) > 1:

@@ -36,6 +36,9 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
     folders = find_raw_episodes(raw_root)
     if not folders:
         raise UserError(f"{raw_root}: no trajectories found (folders holding chest.mp4, up to 4 levels deep)")
+    target = out_root.resolve()
+    if inside := next((f for f in folders if f.resolve() == target or f.resolve() in target.parents), None):
+        raise UserError(f"{out_root}: the output would lie inside the input episode {inside}; choose a folder outside it")
     check_report_folder(out_root, (CONVERSION_REPORT, QUALITY_REPORT), (raw_root,))
     results, todo = plan(folders, raw_root, out_root, skip_existing, overwrite)
     on_start and on_start(len(folders))

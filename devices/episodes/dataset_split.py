@@ -13,7 +13,7 @@ import numpy as np
 from touchanything.devices.episodes.episode_files import read_json_file
 from touchanything.devices.episodes.episode_loader import find_hdf5_files
 from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS, WILOR_VALID_KEYS, frame_count, read_dataset
-from touchanything.devices.errors import DataError, UserError, failure_line, require_fraction
+from touchanything.devices.errors import DataError, UserError, failure_line, require_fraction, require_seed
 from touchanything.devices.output_safety import write_text
 
 SPLIT_KEYS = ("train", "val", "test_seen", "test_unseen")
@@ -89,7 +89,8 @@ class SplitConfig:
 
 
 def check_split_config(config: SplitConfig) -> None:
-    """UserError naming the setting when a threshold is outside its domain (NaN included)."""
+    """UserError naming the setting when a threshold or the seed is outside its domain (NaN included)."""
+    require_seed("--seed", config.seed)
     if not 0.0 <= config.unseen_ratio < 1.0:
         raise UserError(f"--unseen-ratio must be a number in [0, 1), got {config.unseen_ratio}")
     require_fraction("--min-wilor-valid", config.min_wilor_valid)

@@ -25,7 +25,14 @@ from touchanything.devices.episodes.hdf5_episode import (
     WILOR_VALID_KEYS,
 )
 from touchanything.devices.episodes.hdf5_output import hdf5_output
-from touchanything.devices.episodes.raw_episode import MASKS_FILE, QUALITY_FILE, REQUIRED_FILES, WILOR_FILE, open_raw_episode
+from touchanything.devices.episodes.raw_episode import (
+    MASKS_FILE,
+    QUALITY_FILE,
+    REQUIRED_FILES,
+    VIDEO_FILES,
+    WILOR_FILE,
+    open_raw_episode,
+)
 from touchanything.devices.errors import DataError, failure_line
 
 CONVERTER = "touchanything convert"
@@ -164,8 +171,8 @@ def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4,
     try:
         with open_raw_episode(folder) as episode:
             result.problems = list(episode.problems)
-            unreadable = [n for n, s in (("videos", len(episode.views) == 3), ("pressure_grids.npz", episode.pressure),
-                                         ("wilor_hands.json", episode.wilor)) if not s]
+            unreadable = [name for view, name in VIDEO_FILES.items() if view not in episode.views]
+            unreadable += [n for n, s in (("pressure_grids.npz", episode.pressure), ("wilor_hands.json", episode.wilor)) if not s]
             if unreadable or episode.num_frames == 0:
                 raise DataError(folder, None, f"cannot convert: unreadable {', '.join(unreadable) or 'frames (0 frames)'}")
             result.quality = _quality(episode, result.problems)

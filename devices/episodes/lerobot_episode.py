@@ -84,6 +84,24 @@ def episode_rows(root: Path, info: dict) -> dict[int, dict]:
     return {int(row["episode_index"]): row for row in lines if isinstance(row, dict) and "episode_index" in row}
 
 
+COUNT_KEYS = ("total_episodes", "total_frames", "total_tasks")
+
+
+def count_problems(root: Path, episodes: int, frames: int) -> list[str]:
+    """What `meta/info.json` says wrongly of the dataset at `root` whose episodes were found (`episodes`) and read
+    (`frames` in all): a count that is not a whole number ≥ 0, or an episode or frame total other than found."""
+    info, path, problems = read_info(root), Path(root) / fmt.INFO_PATH, []
+    for key in COUNT_KEYS:
+        value = info.get(key)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 0):
+            problems.append(describe(path, key, f"{value!r} is not a count (a whole number ≥ 0)"))
+    for key, found in (("total_episodes", episodes), ("total_frames", frames)):
+        value = info.get(key)
+        if isinstance(value, int) and not isinstance(value, bool) and value >= 0 and value != found:
+            problems.append(describe(path, key, f"says {value}; the dataset holds {found}"))
+    return problems
+
+
 def find_lerobot_episodes(root: Path) -> list[Path]:
     """The addresses `ROOT/episode_NNNNNN` of every episode of the dataset at `root` (none when it is not one)."""
     if not fmt.is_lerobot_root(root):

@@ -37,7 +37,8 @@ import numpy as np
 
 from touchanything.devices.episodes.episode_streams import IDENTITY_WXYZ
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
-from touchanything.devices.episodes.raw_episode import is_raw_episode
+from touchanything.devices.episodes.raw_episode import VIDEO_FILES, is_raw_episode
+from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import TRACKER_ROLES, Snapshot
 
@@ -65,6 +66,22 @@ class RecorderConfig:
         if not valid_fsync_s(self.fsync_s):
             raise UserError(f"recorder fsync_s must be a number of seconds ≥ 0 (0: after every frame) or None "
                             f"(never), got {self.fsync_s!r}")
+
+
+def replayable_frames(folder: Path) -> int:
+    """How many frames of the recording in `folder` can replay: the head camera's video frames (0 when the video
+    does not open or its first frame does not decode). Only the video is read: another stream of a failed
+    recording may be anything (a device file, a cut line)."""
+    try:
+        reader = VideoReader(Path(folder) / VIDEO_FILES["ego"])
+    except Exception:  # noqa: BLE001 - a video cut short by a failure may be unreadable in any way
+        return 0
+    try:
+        return reader.num_frames if reader.read(0) is not None else 0
+    except Exception:  # noqa: BLE001 - as above
+        return 0
+    finally:
+        reader.close()
 
 
 def valid_fsync_s(value: object) -> bool:
@@ -164,8 +181,11 @@ class Recorder:
             self._thread = None
         counters = self.counters
         if self._error is not None:
-            raise UserError(f"recording {self.config.folder} failed: {self._error}; the {counters.written} frames "
-                            "written before are kept")
+            kept = min(replayable_frames(self.config.folder), counters.written)
+            raise UserError(f"recording {self.config.folder} failed: {self._error}; " + (
+                f"{kept} of the {counters.written} frames written before replay" if kept else
+                f"none of the {counters.written} frames written before can be replayed (no frame of the head camera's "
+                "video decodes)"))
         return counters
 
     def __enter__(self) -> Recorder:

@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, partition_seen
-from touchanything.devices.errors import UserError
+from touchanything.devices.errors import UserError, require_seed
 from touchanything.devices.sim.catalogue import SCENES, UNSEEN_OBJECTS
 from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_episode
 from touchanything.devices.sim.episode_stats import CAMERAS, EpisodeStats
 from touchanything.devices.sim.pose_ambiguity import pose_statistics
 
-MAX_SEED = 2**32 - 1
-"""The largest --seed (every numpy generator, the legacy one included, takes 0 … 2³² − 1)."""
+MAX_SECONDS = 3600.0
+"""The longest episode (an hour: 108,000 frames of three views, tens of GB as raw video)."""
 UNSEEN_SHARE = 0.2
 CARD_JSON, CARD_MD = "dataset_card.json", "dataset_card.md"
 
@@ -38,10 +38,9 @@ class SimulationConfig:
 def check_config(config: SimulationConfig) -> None:
     if config.episodes < 1:
         raise UserError(f"--episodes must be at least 1, got {config.episodes}")
-    if not (np.isfinite(config.seconds) and config.seconds >= 1.0):
-        raise UserError(f"--seconds must be at least 1, got {config.seconds}")
-    if not 0 <= config.seed <= MAX_SEED:
-        raise UserError(f"--seed must be an integer 0–{MAX_SEED}, got {config.seed}")
+    if not (np.isfinite(config.seconds) and 1.0 <= config.seconds <= MAX_SECONDS):
+        raise UserError(f"--seconds must be 1–{MAX_SECONDS:g} (an episode of at most an hour), got {config.seconds}")
+    require_seed("--seed", config.seed)
     if config.workers < 1:
         raise UserError(f"--workers must be at least 1, got {config.workers}")
 
