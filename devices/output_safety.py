@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import os
 import re
 import shutil
@@ -191,34 +192,77 @@ def sync(path: Path) -> None:
     if Path(path).is_dir():
         for root, _, files in os.walk(path):
             for name in files:
-                _fsync(Path(root) / name)
-            _fsync(Path(root))
+                fsync_path(Path(root) / name)
+            fsync_path(Path(root), directory=True)
     else:
-        _fsync(Path(path))
+        fsync_path(Path(path))
 
 
-def _fsync(path: Path) -> None:
-    descriptor = os.open(path, os.O_RDONLY)
+def fsync_fd(fd: int, path: Path) -> None:
+    """os.fsync(fd); an OSError names `path`. EINVAL (a special file such as /dev/null, which has nothing to
+    put on a disk) is not an error."""
     try:
-        os.fsync(descriptor)
+        os.fsync(fd)
+    except OSError as exc:
+        if exc.errno != errno.EINVAL:
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+
+
+def fsync_path(path: Path, directory: bool = False) -> None:
+    """fsync a file by name, or a directory (its entries: files created in it survive a power loss)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if directory else 0))
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, str(path)) from exc
+    try:
+        fsync_fd(fd, path)
     finally:
-        os.close(descriptor)
+        os.close(fd)
 
 
 @contextlib.contextmanager
 def replacing(path: Path) -> Iterator[Path]:
     """Rule 2: yields the temporary path to write; when the block ends it is synced and renamed over `path`
     (its folder is created first, and synced after). On any exception the temporary file is removed and `path`
-    is left as it was; an OSError (no space, file too large, read-only…) is raised as a UserError naming `path`."""
+    is left as it was; an OSError (no space, file too large, read-only…) is raised as a UserError naming `path`.
+    A sync that fails (the disk reports an I/O error) leaves the complete file in place and raises a UserError
+    saying it is not confirmed on the disk: what was written is kept, and the command does not report success."""
     path = Path(path)
     temporary = temporary_path(path)
     with _removed_on_failure(temporary, path):
         path.parent.mkdir(parents=True, exist_ok=True)
         remove_left_behind(path.parent)
         yield temporary
-        sync(temporary)
-        os.replace(temporary, path)
-        _fsync(path.parent)
+        _synced_rename(temporary, path)
+
+
+def _synced_rename(temporary: Path, path: Path, rename: Callable[[], None] | None = None) -> None:
+    """Sync `temporary`, rename it over `path` (or run `rename`), sync the folder; a failed sync is raised (as
+    "not confirmed on the disk") after the rename, a failed rename at once."""
+    unconfirmed = _sync_failure(lambda: sync(temporary))
+    (rename or (lambda: os.replace(temporary, path)))()
+    unconfirmed = _sync_failure(lambda: fsync_path(path.parent, directory=True)) or unconfirmed
+    if unconfirmed is not None:
+        raise UserError(f"{path}: written, but not confirmed on the disk ({describe(unconfirmed)})")
+
+
+def _swap_in(temporary: Path, out: Path) -> None:
+    """`temporary` takes the place of the folder `out` (an existing one is moved aside first, then removed)."""
+    if not out.exists():
+        os.replace(temporary, out)
+        return
+    old = out.with_name(f".{out.name}.old-{os.getpid()}")
+    os.replace(out, old)
+    os.replace(temporary, out)
+    _remove(old)
+
+
+def _sync_failure(step: Callable[[], None]) -> OSError | None:
+    try:
+        step()
+    except OSError as exc:
+        return exc
+    return None
 
 
 @contextlib.contextmanager
@@ -251,14 +295,6 @@ def replacing_folder(out: Path, overwrite: bool = False) -> Iterator[Path]:
         temporary.mkdir(parents=True)
         remove_left_behind(out.parent)
         yield temporary
-        sync(temporary)
-        if out.exists():
-            if not overwrite and any(out.iterdir()):
-                raise UserError(f"{out}: folder is not empty; pass --overwrite to replace it")
-            old = out.with_name(f".{out.name}.old-{os.getpid()}")
-            os.replace(out, old)
-            os.replace(temporary, out)
-            _remove(old)
-        else:
-            os.replace(temporary, out)
-        _fsync(out.parent)
+        if out.exists() and not overwrite and any(out.iterdir()):
+            raise UserError(f"{out}: folder is not empty; pass --overwrite to replace it")
+        _synced_rename(temporary, out, lambda: _swap_in(temporary, out))

@@ -121,9 +121,9 @@ def test_sync_fsyncs_every_file_and_each_new_directory_entry_once(tmp_path, fsyn
                                         temporary_path(folder / "pressure_grids.npz"), folder]
     assert fsyncs[0].size == (folder / "chest.mp4").stat().st_size
     fsyncs.clear()
-    with RawEpisodeWriter(tmp_path / "plain") as plain:  # not durable, never synced: nothing
+    with RawEpisodeWriter(tmp_path / "plain") as plain:  # not durable: only the grids, written under the output rule
         plain.write(EpisodeFrame(images={"ego": frame_picture(0)}, wilor=hands, glove=glove))
-    assert fsyncs == []
+    assert [f.path for f in fsyncs] == [temporary_path(tmp_path / "plain" / "pressure_grids.npz"), tmp_path / "plain"]
 
 
 def sync_rounds(fsyncs: list[Fsync], folder: Path) -> list[float]:
@@ -199,7 +199,7 @@ def test_a_failed_fsync_is_a_writer_error(tmp_path, monkeypatch):
     recorder.start()
     for k in range(6):
         recorder.write(synthetic_snapshot(k))
-    with pytest.raises(UserError, match=r"failed: Input/output error \(.*/ep/wilor_hands.json\); the 1 frames"):
+    with pytest.raises(UserError, match=r"failed: Input/output error \(.*/ep/wilor_hands.json\); 1 of the 1 frames"):
         recorder.stop()
     assert (recorder.counters.written, recorder.counters.failed) == (1, 5)
     assert (folder / "pressure_grids.npz").is_file()  # still closed and computed from what was written

@@ -25,9 +25,9 @@ from touchanything.devices.episodes.episode_files import write_pressure_grids
 from touchanything.devices.episodes.episode_streams import glove_row, hands_row, read_glove, trackers_row
 from touchanything.devices.episodes.jsonl import json_line
 from touchanything.devices.episodes.raw_episode import GLOVE_FILE, GRIDS_FILE, ROKOKO_FILE, VIDEO_FILES, VIVE_FILE, WILOR_FILE
-from touchanything.devices.episodes.video_io import VideoWriter, fsync_fd, fsync_path
+from touchanything.devices.episodes.video_io import VideoWriter
 from touchanything.devices.errors import DataError
-from touchanything.devices.output_safety import replacing
+from touchanything.devices.output_safety import fsync_fd, fsync_path, replacing
 from touchanything.devices.snapshot import FRAME_PERIOD_US
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import PressureGrids, TactileConfig, process_raw
@@ -46,9 +46,11 @@ class EpisodeFrame:
     timestamp_us: int | None = None
 
 
-def write_grids_from_glove(folder: Path, layout: TactileLayout | None = None, config: TactileConfig = TactileConfig(),
-                           sync: bool = False) -> PressureGrids:
-    """Compute `pressure_grids.npz` of an episode folder from its `jq_pressure.json` (`sync`: see `_write_grids`).
+def write_grids_from_glove(folder: Path, layout: TactileLayout | None = None,
+                           config: TactileConfig = TactileConfig()) -> PressureGrids:
+    """Compute `pressure_grids.npz` of an episode folder from its `jq_pressure.json`, written under the output
+    rule (`output_safety.replacing`: a temporary file synced and renamed into place, the folder synced after; a
+    failed write, disk full included, leaves the old file and no temporary one).
 
     A stream without one usable hand sample (empty, or every sample malformed or non-finite) raises DataError
     before anything is written: the existing grids are kept rather than replaced by meaningless ones."""
@@ -58,28 +60,9 @@ def write_grids_from_glove(folder: Path, layout: TactileLayout | None = None, co
         reason = "no frames" if len(stream.present) == 0 else f"none of its {len(stream.present)} frames holds a usable sample"
         detail = f" ({problems[0]})" if problems else ""
         raise DataError(path, None, f"cannot compute grids: {reason}{detail}; {GRIDS_FILE} left as it was")
-    return _write_grids(Path(folder), stream.raw, layout or TactileLayout.default(), config, sync=sync)
-
-
-def _write_grids(folder: Path, raw: np.ndarray, layout: TactileLayout, config: TactileConfig,
-                 sync: bool = False) -> PressureGrids:
-    """Write the grids to a temporary file renamed into place (output_safety.replacing: a failed write, disk
-    full included, leaves the old file and no temporary one); `sync`: fsync the file before the rename and the
-    folder after it (the grids are then on the disk, or absent, never a torn file). A failed fsync is raised
-    after the rename: the grids are still there to read."""
-    grids = process_raw(raw, layout, config)
-    failure: OSError | None = None
-    with replacing(folder / GRIDS_FILE) as part:
+    grids = process_raw(stream.raw, layout or TactileLayout.default(), config)
+    with replacing(Path(folder) / GRIDS_FILE) as part:
         write_pressure_grids(part, grids.grids, grids.baseline_applied, grids.tactile_max, grids.bend_max)
-        if sync:
-            try:
-                fsync_path(part)
-            except OSError as exc:
-                failure = exc
-    if failure is not None:
-        raise failure
-    if sync:
-        fsync_path(folder, directory=True)
     return grids
 
 
@@ -193,7 +176,7 @@ class RawEpisodeWriter:
         self._videos, self._streams, self._last_images = {}, {}, {}
         # the grids from the glove stream as written, read back from the closed file: a recording of any
         # length holds no glove history in memory
-        grids = write_grids_from_glove(self.folder, self.layout, self.config, sync=self.durable) if has_glove else None
+        grids = write_grids_from_glove(self.folder, self.layout, self.config) if has_glove else None
         if failure is not None:
             raise failure
         return grids

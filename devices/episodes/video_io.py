@@ -1,7 +1,6 @@
 """Video files through PyAV: RGB frames in memory, random access by frame index, crash-safe H.264 writing."""
 from __future__ import annotations
 
-import errno
 import itertools
 import os
 from collections.abc import Iterator
@@ -13,6 +12,7 @@ import cv2
 import numpy as np
 
 from touchanything.devices.errors import DataError
+from touchanything.devices.output_safety import fsync_fd, fsync_path
 
 MAX_FPS = 240
 """A frame rate outside 1..MAX_FPS (a damaged header: 30/65537 was seen) is not believed: the guessed rate, else
@@ -213,28 +213,6 @@ class VideoWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def fsync_fd(fd: int, path: Path) -> None:
-    """os.fsync(fd); an OSError names `path`. EINVAL (a special file such as /dev/null, which has nothing to
-    put on a disk) is not an error."""
-    try:
-        os.fsync(fd)
-    except OSError as exc:
-        if exc.errno != errno.EINVAL:
-            raise OSError(exc.errno, exc.strerror, str(path)) from exc
-
-
-def fsync_path(path: Path, directory: bool = False) -> None:
-    """fsync a file by name, or a directory (its entries: files created in it survive a power loss)."""
-    try:
-        fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if directory else 0))
-    except OSError as exc:
-        raise OSError(exc.errno, exc.strerror, str(path)) from exc
-    try:
-        fsync_fd(fd, path)
-    finally:
-        os.close(fd)
 
 
 def video_comment(path: Path) -> str | None:
