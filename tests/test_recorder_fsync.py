@@ -135,8 +135,8 @@ def sync_rounds(fsyncs: list[Fsync], folder: Path) -> list[float]:
 def test_the_recorder_fsyncs_every_stream_on_its_cadence_on_the_writer_thread(tmp_path, fsyncs):
     folder = (tmp_path / "ep").resolve()
     recorder = Recorder(RecorderConfig(folder, fsync_s=0.5))
+    began = time.monotonic()  # before start(): the recorder's first period begins inside it
     recorder.start()
-    began = time.monotonic()
     for k in range(75):  # 2.5 s at 30 fps from this thread, standing in for the rig clock's
         time.sleep(max(0.0, began + k / FPS - time.monotonic()))
         recorder.write(synthetic_snapshot(k))
