@@ -91,6 +91,16 @@ def check_output(out: Path, inputs: Iterable[Path | None] = (), overwrite: bool 
     check_writable(target if folder or whole else target.parent)
 
 
+def check_outside(out: Path, folders: Iterable[Path]) -> None:
+    """UserError when the output folder `out` is, or would lie inside, one of the input `folders` (an episode, a
+    dataset a command builds a whole new folder from)."""
+    target = Path(out).resolve()
+    for folder in folders:
+        real = Path(folder).resolve()
+        if real.is_dir() and (real == target or real in target.parents):
+            raise UserError(f"{out}: the output would lie inside the input {folder}; choose a folder outside it")
+
+
 def check_name_lengths(out: Path) -> None:
     """UserError when a name in `out`, or the temporary name its file is first written under, is longer than the
     file system of its nearest existing folder allows (checked before any work; the OS would refuse it after)."""

@@ -46,7 +46,7 @@ def test_convert_into_an_input_episode_is_refused(tmp_path, capsys, small):
     shutil.copytree(small[0].parents[2], raw)
     episode = raw / "Home" / "press" / "001"
     before = digest(raw)
-    refused(capsys, ["convert", str(raw), str(episode / "conv2")], "the output would lie inside the input episode",
+    refused(capsys, ["convert", str(raw), str(episode / "conv2")], "the output would lie inside the input",
             str(episode))
     assert digest(raw) == before and not (episode / "conv2").exists()
 
@@ -115,3 +115,10 @@ def test_a_recording_on_a_full_disk_says_how_many_frames_replay(tmp_path):
         assert "can be replayed (no frame of the head camera's video decodes)" in err[0] or " frames written before replay" in err[0]
     finally:
         subprocess.run(["umount", str(disk)], check=True)
+
+
+def test_record_into_the_episode_the_simulated_rig_replays_is_refused(capsys):
+    episode = REPO / "recordings" / "sample" / "Home" / "slide_box_cardboard" / "sim0007_00000"
+    refused(capsys, ["record", "--scene", str(REPO / "scenes" / "sim.toml"), "--out", str(episode / "rec"), "--seconds", "1"],
+            "the output would lie inside the input", "sim0007_00000")
+    assert not (episode / "rec").exists()

@@ -80,7 +80,7 @@ def test_dataset_conversion_with_workers_reports_and_skip_existing(tmp_path):
 def test_conversion_never_leaves_a_partial_file(episode_dir, tmp_path):
     (episode_dir / "left.mp4").write_bytes(b"garbage" * 50)
     result = convert_trajectory(episode_dir, tmp_path / "x.hdf5")
-    assert result.status == "failed" and "videos" in result.error
+    assert result.status == "failed" and "unreadable left.mp4" in result.error
     assert sorted(tmp_path.iterdir()) == [tmp_path / "raw"]  # neither the trajectory nor a temporary file
 
 

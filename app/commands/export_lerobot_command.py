@@ -10,7 +10,7 @@ from tqdm import tqdm
 
 from touchanything.devices.episodes.lerobot_export import export_lerobot, source_episodes
 from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import add_overwrite_argument, check_output
+from touchanything.devices.output_safety import add_overwrite_argument, check_output, check_outside
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -23,8 +23,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 def check_export_output(root: Path, out: Path, overwrite: bool) -> None:
     """Before any work: OUT is not inside ROOT (nor ROOT inside OUT) and passes the output rule."""
-    if root.resolve() in out.resolve().parents:
-        raise UserError(f"{out}: the output would lie inside the input {root}; choose a folder outside it")
+    check_outside(out, (root,))
     check_output(out, (root,), overwrite, whole=True)
 
 

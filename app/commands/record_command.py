@@ -19,15 +19,16 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from touchanything.app.sessions.scene import read_scene
+    from touchanything.app.sessions.scene import read_scene, scene_inputs
     from touchanything.app.sessions.scene_rig import LiveRig
-    from touchanything.devices.output_safety import check_output
+    from touchanything.devices.output_safety import check_output, check_outside
     from touchanything.devices.rig.recorder import Recorder, RecorderConfig
 
-    check_output(args.out, (args.scene,), folder=True)
+    scene = read_scene(args.scene)
+    check_outside(args.out, scene_inputs(scene))
+    check_output(args.out, scene_inputs(scene), folder=True)
     if args.seconds is not None:
         require_finite_positive("--seconds", args.seconds)
-    scene = read_scene(args.scene)
     recorder = Recorder(RecorderConfig(args.out, fsync_s=scene.recording.fsync_s))
     rig = LiveRig(scene)
     clock = rig.start()

@@ -105,6 +105,16 @@ def read_scene(path: Path) -> Scene:
         raise UserError(f"{path}: {exc}") from None
 
 
+def scene_inputs(scene: Scene) -> list[Path]:
+    """The files a scene reads besides itself: the episode its simulated rig replays, the video files its cameras
+    play, its model's checkpoint (what a command that records it must never write over)."""
+    files = [scene.path, scene.model.checkpoint]
+    files += [scene.simulator.episode] if scene.simulator is not None else []
+    files += [Path(c.source) for c in scene.cameras.values()
+              if isinstance(getattr(c, "source", None), str) and not str(c.source).startswith("/dev/")]
+    return files
+
+
 def _build(cls, section: str, settings: dict):
     """cls(**settings), naming the section and the key when a key is unknown, missing or of the wrong type
     (the config's own checks then name impossible values)."""

@@ -12,7 +12,7 @@ from touchanything.devices.episodes.episode_loader import find_raw_episodes
 from touchanything.devices.episodes.hdf5_convert import ConversionResult, convert_trajectory, output_path, source_name
 from touchanything.devices.episodes.hdf5_output import written_from
 from touchanything.devices.errors import UserError, failure_line
-from touchanything.devices.output_safety import check_report_folder, replacing, write_text
+from touchanything.devices.output_safety import check_outside, check_report_folder, replacing, write_text
 
 CONVERSION_REPORT = "conversion_report.txt"
 QUALITY_REPORT = "quality_report.txt"
@@ -36,9 +36,7 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
     folders = find_raw_episodes(raw_root)
     if not folders:
         raise UserError(f"{raw_root}: no trajectories found (folders holding chest.mp4, up to 4 levels deep)")
-    target = out_root.resolve()
-    if inside := next((f for f in folders if f.resolve() == target or f.resolve() in target.parents), None):
-        raise UserError(f"{out_root}: the output would lie inside the input episode {inside}; choose a folder outside it")
+    check_outside(out_root, folders)
     check_report_folder(out_root, (CONVERSION_REPORT, QUALITY_REPORT), (raw_root,))
     results, todo = plan(folders, raw_root, out_root, skip_existing, overwrite)
     on_start and on_start(len(folders))
