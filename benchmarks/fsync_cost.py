@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import statistics
 import tempfile
@@ -24,8 +25,9 @@ import numpy as np
 from touchanything.app.sessions.bundled import SAMPLE_DIR, sample_episodes
 from touchanything.devices import output_safety
 from touchanything.devices.episodes.dataset_conversion import convert_dataset
-from touchanything.devices.episodes.episode_files import GRIDS_FILE, read_pressure_grids, write_pressure_grids
-from touchanything.devices.output_safety import write_text
+from touchanything.devices.episodes.episode_files import read_pressure_grids, write_pressure_grids
+from touchanything.devices.episodes.raw_episode import GRIDS_FILE
+from touchanything.devices.output_safety import replacing, write_text
 
 
 def timed(function, synced: bool) -> float:
@@ -41,12 +43,18 @@ def timed(function, synced: bool) -> float:
         output_safety.sync, output_safety.fsync_path = saved
 
 
+def write_grids(path: Path, grids: np.ndarray) -> None:
+    """What the recorder writes at its end, through the output rule."""
+    with replacing(path) as part:
+        write_pressure_grids(part, grids)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--out", type=Path, default=Path("recordings") / "bench")
     args = parser.parse_args()
-    grids = read_pressure_grids(sample_episodes()[0] / GRIDS_FILE)
+    grids = read_pressure_grids(sample_episodes()[0] / GRIDS_FILE).grids
     times: dict[str, list[float]] = {k: [] for k in ("convert synced", "convert unsynced", "grids synced", "grids unsynced")}
     with tempfile.TemporaryDirectory(dir=".") as work:
         for round_index in range(args.rounds):
@@ -58,13 +66,15 @@ def main() -> None:
                 folder = Path(work) / "ep"
                 folder.mkdir(exist_ok=True)
                 times[f"grids {'synced' if synced else 'unsynced'}"].append(timed(
-                    lambda: [write_pressure_grids(folder / GRIDS_FILE, grids) for _ in range(20)], synced) / 20)
+                    lambda: [write_grids(folder / GRIDS_FILE, grids) for _ in range(20)], synced) / 20)
     medians = {k: statistics.median(v) for k, v in times.items()}
-    record = {"rounds": args.rounds, "seconds": times, "medians": medians,
+    load = os.getloadavg()[0]
+    record = {"rounds": args.rounds, "load_average": load, "seconds": times, "medians": medians,
               "convert_cost": medians["convert synced"] / medians["convert unsynced"] - 1,
               "grids_cost_ms": (medians["grids synced"] - medians["grids unsynced"]) * 1000}
     lines = ["# What syncing finished outputs costs (`benchmarks/fsync_cost.py`)", "",
-             f"Medians of {args.rounds} interleaved rounds.", "", "| measured | synced | not synced | cost |",
+             f"Medians of {args.rounds} interleaved rounds on {os.cpu_count()} CPU cores, load average {load:.1f} at the end "
+             "(other jobs on the machine).", "", "| measured | synced | not synced | cost |",
              "|---|---|---|---|",
              f"| convert the sample (3 trajectories, 900 frames) | {medians['convert synced']:.2f} s | "
              f"{medians['convert unsynced']:.2f} s | {record['convert_cost']:+.1%} |",
