@@ -183,3 +183,31 @@ def test_worker_processes_measure_what_one_process_does():
         np.testing.assert_allclose(a["per_trajectory"]["volumetric_iou"], b["per_trajectory"]["volumetric_iou"], atol=1e-6)
         np.testing.assert_allclose(a["per_trajectory"]["contact_iou"], b["per_trajectory"]["contact_iou"], atol=1e-6)
         assert a["agreement_viou"] == pytest.approx(b["agreement_viou"], abs=1e-6)
+
+
+def test_the_model_axis_targets_judge_faster_and_more_accurate_models_against_the_base():
+    from touchanything.inference.evaluation.bench_report import model_axis_checks
+
+    def row(setting: str, p99: float | None, unseen: float, ci: tuple[float, float]) -> dict:
+        return {"setting": setting, "model": setting.split("/")[0], "p99_ms": p99, "volumetric_iou": unseen,
+                "per_split": {"test_unseen": {"volumetric_iou": unseen, "volumetric_iou_ci95": list(ci)}}}
+
+    rows = [row("nano/torch-fp32/all", 8.0, 0.49, (0.46, 0.52)), row("nano/onnx-int8/all", 3.0, 0.49, (0.46, 0.52)),
+            row("pico/torch-fp32/all", 4.0, 0.47, (0.44, 0.50)), row("pico/onnx-int8/all", 1.2, 0.47, (0.44, 0.50)),
+            row("big/torch-fp32/all", 20.0, 0.53, (0.505, 0.55)), row("big/onnx-int8/all", 9.0, 0.53, (0.505, 0.55)),
+            row("baseline_pose/torch-fp32/all", 2.0, 0.5, (0.47, 0.53))]
+    comparisons = [{"setting": "pico/torch-fp32/all", "against": "baseline_pose/torch-fp32/all",
+                    "delta_contact_iou": [0.03, 0.012, 0.05]}]
+    checks = {c["target"]: c for c in model_axis_checks(rows, "nano", comparisons)}
+    assert checks["pico (faster than nano): ONNX int8 all views p99 (ms)"]["met"] is True
+    assert checks["pico: contact IoU minus baseline_pose's, low end of the paired 95 % interval"]["value"] == 0.012
+    assert checks["big (more accurate than nano): V-IoU on unseen objects"]["met"] is True
+    low_end = checks["big: low end of its unseen V-IoU interval minus nano's unseen V-IoU"]
+    assert low_end["value"] == pytest.approx(0.015) and low_end["met"] is True
+    assert not any(name.startswith(("nano", "baseline_pose")) for name in checks)
+    rows[3]["p99_ms"] = 2.0  # faster than nano, but not within 1.5 ms
+    rows[4]["per_split"]["test_unseen"]["volumetric_iou_ci95"] = [0.48, 0.55]  # its interval reaches below nano's point
+    checks = {c["target"]: c for c in model_axis_checks(rows, "nano", [])}
+    assert checks["pico (faster than nano): ONNX int8 all views p99 (ms)"]["met"] is False
+    assert checks["pico: contact IoU minus baseline_pose's, low end of the paired 95 % interval"]["met"] is None
+    assert checks["big: low end of its unseen V-IoU interval minus nano's unseen V-IoU"]["met"] is False

@@ -78,7 +78,7 @@ def test_rows_get_intervals_per_split_and_paired_comparisons():
                                               "contact_iou": 0.6, "contact_iou_ci95": [0.6, 0.6]}
     assert nano["per_split"]["test_unseen"]["volumetric_iou"] == pytest.approx(0.2)
     assert "volumetric_iou_ci95" not in rows[3]  # latency only
-    comparisons = {(c["setting"], c["against"]): c for c in paired_comparisons(rows, trajectories, "nano")}
+    comparisons = {(c["setting"], c["against"]): c for c in paired_comparisons(rows, trajectories, ("nano",))}
     assert set(comparisons) == {("nano/onnx-int8/all", "nano/torch-fp32/all"), ("tiny/torch-fp32/all", "nano/torch-fp32/all")}
     int8 = comparisons[("nano/onnx-int8/all", "nano/torch-fp32/all")]
     assert int8["kind"] == "setting" and int8["delta_volumetric_iou"] == pytest.approx([-0.1 / 3] * 3)

@@ -26,6 +26,7 @@ from touchanything.inference.evaluation.bench_intervals import add_intervals, al
 from touchanything.inference.evaluation.bench_report import (
     GPU_OUTPUT_FILES,
     OUTPUT_FILES,
+    POSE_BASELINE,
     markdown,
     record_json,
     target_checks,
@@ -176,9 +177,9 @@ def atlas(args: argparse.Namespace, models: dict[str, tuple[TactileModel, Path]]
               "splits": list(dict.fromkeys(t["split"] for t in trajectories)), "trajectories": trajectories,
               "failed": list(failures), "frames_per_episode": held_out.frames, "workers": held_out.workers,
               "seconds": time.perf_counter() - started, "base_model": base,
-              "rows": rows, "comparisons": paired_comparisons(rows, trajectories, base),
-              "naive_over_streaming": {k: v["ratio"] for k, v in naive.items()}, "naive": naive,
-              "targets": target_checks(rows, naive, next(iter(models)))}
+              "rows": rows, "comparisons": paired_comparisons(rows, trajectories, (base, POSE_BASELINE)),
+              "naive_over_streaming": {k: v["ratio"] for k, v in naive.items()}, "naive": naive}
+    record["targets"] = target_checks(rows, naive, next(iter(models)), base, record["comparisons"])
     written = write_outputs(record, args.out)
     print(markdown(record))
     print("written: " + ", ".join(str(p) for p in written))

@@ -56,20 +56,21 @@ def add_intervals(rows: list[dict], trajectories: list[dict]) -> None:
                             for name, keep in per_split.items()}
 
 
-def paired_comparisons(rows: list[dict], trajectories: list[dict], base_model: str) -> list[dict]:
+def paired_comparisons(rows: list[dict], trajectories: list[dict], base_models: tuple[str, ...]) -> list[dict]:
     """{setting, against, kind ("setting" | "model"), trajectories, delta_<metric>: [mean, low, high]} for every
-    row with accuracy against its reference setting, and every model's reference against `base_model`'s."""
+    row with accuracy against its reference setting, and every model's reference against each of `base_models`'
+    (the default model, the pose-only baseline)."""
     resampler = Resampler([t["split"] for t in trajectories])
     measured = {row["setting"]: row for row in rows if row.get("per_trajectory") is not None}
-    base = BenchSetting(base_model).name()
+    bases = [BenchSetting(model).name() for model in base_models]
     pairs = []
     for name in measured:
         setting = parse_setting(name)
         reference = reference_of(setting).name()
         if reference != name and reference in measured:
             pairs.append((name, reference, "setting"))
-        elif reference == name != base and not setting.blank and base in measured:
-            pairs.append((name, base, "model"))
+        elif reference == name and not setting.blank:
+            pairs += [(name, base, "model") for base in bases if base != name and base in measured]
     out = []
     for name, against, kind in pairs:
         a, b = measured[name]["per_trajectory"], measured[against]["per_trajectory"]

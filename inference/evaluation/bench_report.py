@@ -27,9 +27,13 @@ def _check(target: str, value: float | None, bound: float, at_most: bool) -> dic
     return {"target": target, "value": value, "limit": f"{'≤' if at_most else '≥'} {bound:g}", "met": met}
 
 
-def target_checks(rows: list[dict], naive: dict, smallest: str) -> list[dict]:
+def target_checks(rows: list[dict], naive: dict, smallest: str, base: str = "nano",
+                  comparisons: list[dict] = ()) -> list[dict]:
     """The engine's targets, each {target, value, limit, met} (value and met None when not measured); pose-only
-    twins are not settings to ship and are left out."""
+    twins are not settings to ship and are left out. Beside the base model: a model faster than it (ONNX int8,
+    all views) must reach FAST_P99_MS and beat `baseline_pose` in contact IoU (its paired interval above 0); a
+    model more accurate than it must reach UNSEEN_VIOU_TARGET on unseen objects with its interval above the base
+    model's value."""
     rows = [r for r in rows if not r.get("blank")]
     fast = next((r for r in rows if r["setting"] == f"{smallest}/onnx-int8/all"), None)
     checks = [_check(f"{smallest} ONNX int8, all views: p99 per-frame latency (ms)", fast and fast["p99_ms"],
@@ -42,6 +46,44 @@ def target_checks(rows: list[dict], naive: dict, smallest: str) -> list[dict]:
         if row["precision"] in ("int8", "bf16") and same_knobs and row["volumetric_iou"] is not None:
             checks.append(_check(f"{row['setting']}: volumetric IoU lost against fp32",
                                  reference["volumetric_iou"] - row["volumetric_iou"], PRECISION_LOSS_TARGET, at_most=True))
+    return checks + model_axis_checks(rows, base, list(comparisons))
+
+
+FAST_P99_MS = 1.5
+UNSEEN_VIOU_TARGET = 0.52
+POSE_BASELINE = "baseline_pose"
+
+
+def _unseen(row: dict) -> dict:
+    return (row.get("per_split") or {}).get("test_unseen") or {}
+
+
+def model_axis_checks(rows: list[dict], base: str, comparisons: list[dict]) -> list[dict]:
+    """The model axis of the atlas against `base`: for each model with a faster ONNX int8 all-views setting, its p99
+    against FAST_P99_MS and its contact IoU against the pose-only MLP (the lower bound of the paired difference of
+    the two references, which must be > 0); for each model with a higher unseen-object V-IoU, that value against
+    UNSEEN_VIOU_TARGET and the lower bound of its interval against the base's value (must be above it)."""
+    by_setting = {r["setting"]: r for r in rows}
+    base_fast, base_ref = by_setting.get(f"{base}/onnx-int8/all"), _reference(rows, base)
+    checks = []
+    for model in dict.fromkeys(r["model"] for r in rows):
+        fast, ref = by_setting.get(f"{model}/onnx-int8/all"), _reference(rows, model)
+        if model in (base, POSE_BASELINE) or model.startswith("baseline") or ref is None:
+            continue
+        if fast and base_fast and fast["p99_ms"] is not None and base_fast["p99_ms"] is not None \
+                and fast["p99_ms"] < base_fast["p99_ms"]:
+            checks.append(_check(f"{model} (faster than {base}): ONNX int8 all views p99 (ms)", fast["p99_ms"], FAST_P99_MS,
+                                 at_most=True))
+            against = next((c for c in comparisons if c["setting"] == ref["setting"]
+                            and c["against"] == f"{POSE_BASELINE}/torch-fp32/all"), None)
+            checks.append(_check(f"{model}: contact IoU minus {POSE_BASELINE}'s, low end of the paired 95 % interval",
+                                 against and against["delta_contact_iou"][1], 0.0, at_most=False))
+        unseen, base_unseen = _unseen(ref), _unseen(base_ref or {})
+        if unseen and base_unseen and unseen["volumetric_iou"] > base_unseen["volumetric_iou"]:
+            checks.append(_check(f"{model} (more accurate than {base}): V-IoU on unseen objects", unseen["volumetric_iou"],
+                                 UNSEEN_VIOU_TARGET, at_most=False))
+            checks.append(_check(f"{model}: low end of its unseen V-IoU interval minus {base}'s unseen V-IoU",
+                                 unseen["volumetric_iou_ci95"][0] - base_unseen["volumetric_iou"], 0.0, at_most=False))
     return checks
 
 
