@@ -211,3 +211,10 @@ def test_the_model_axis_targets_judge_faster_and_more_accurate_models_against_th
     assert checks["pico (faster than nano): ONNX int8 all views p99 (ms)"]["met"] is False
     assert checks["pico: contact IoU minus baseline_pose's, low end of the paired 95 % interval"]["met"] is None
     assert checks["big: low end of its unseen V-IoU interval minus nano's unseen V-IoU"]["met"] is False
+
+
+def test_few_held_out_trajectories_are_a_warning_before_any_work(tmp_path, capsys):
+    assert main(["bench", "--quick", "--models", str(tmp_path / "none"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "warning: only 3 held-out trajectories: the 95 % intervals are wide" in err
+    assert not (tmp_path / "out" / "engine.json").exists()
