@@ -3,6 +3,9 @@ its model card (what it is, what it was trained on, its held-out accuracy from `
 
     .venv/bin/python scripts/bundle_model.py CHECKPOINT models/NAME --trained-on "simulated EgoTouch world, 162 episodes" \
         --eval test_seen=EVAL_SEEN/results.json test_unseen=EVAL_UNSEEN/results.json
+
+With CHECKPOINT = models/NAME/best_model.pth (a model bundled already) only its card is written: the weights, which
+the atlas knows by their sha256, stay as they are.
 """
 from __future__ import annotations
 
@@ -47,8 +50,9 @@ def main() -> None:
     source = read_checkpoint(args.checkpoint)
     config = yaml.safe_load(find_config(args.checkpoint, None).read_text())
     target = args.out / "best_model.pth"
-    save_checkpoint(target, model, epoch=int(source.get("epoch", 0)), loss=source.get("loss"),
-                    metrics=source.get("metrics"), half=True, config=config)
+    if target.resolve() != args.checkpoint.resolve():
+        save_checkpoint(target, model, epoch=int(source.get("epoch", 0)), loss=source.get("loss"),
+                        metrics=source.get("metrics"), half=True, config=config)
     splits = dict(item.split("=", 1) for item in args.eval)
     pose_only = bool(model.config.blank_images)
     card = ModelCard(name=args.out.name, trained_on=args.trained_on,

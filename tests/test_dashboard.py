@@ -113,6 +113,15 @@ def wait_for(condition, what: str, seconds: float = 60) -> None:
         time.sleep(0.05)
 
 
+def run_driven(dashboard: Dashboard, drive):
+    """Run the dashboard while `drive()` acts on its session from another thread (and closes it); its stats."""
+    thread = threading.Thread(target=drive, daemon=True)
+    thread.start()
+    stats = dashboard.run()
+    thread.join(5)
+    return stats
+
+
 def drive_controls(session: ReplaySession, dashboard: Dashboard, errors: list[str]) -> None:
     try:
         wait_for(lambda: session.state().prediction is not None, "a first prediction")
@@ -147,10 +156,7 @@ def controls_run() -> dict:
     with open_episode(sample_episodes()[0]) as episode:
         session = ReplaySession(episode, build_engine(NANO, VIEW_NAMES), NANO).start()
         dashboard = Dashboard(session)
-        thread = threading.Thread(target=drive_controls, args=(session, dashboard, errors), daemon=True)
-        thread.start()
-        stats = dashboard.run()
-        thread.join(5)
+        stats = run_driven(dashboard, lambda: drive_controls(session, dashboard, errors))
     return {"errors": errors, "threshold": session.threshold, "views": session.views, "frames": stats.frames}
 
 
@@ -224,10 +230,7 @@ def live_run(recordings: Path) -> dict:
         finally:
             dashboard.close()
 
-    thread = threading.Thread(target=record, daemon=True)
-    thread.start()
-    stats = dashboard.run()
-    thread.join(5)
+    stats = run_driven(dashboard, record)
     return {"errors": errors, "frames": stats.frames, "message": session.message,
             "camera_lag_ms": stats.camera_lag_ms}
 
@@ -301,10 +304,7 @@ def atlas_switch_run(atlas: Path) -> dict:
             finally:
                 dashboard.close()
 
-        thread = threading.Thread(target=drive, daemon=True)
-        thread.start()
-        dashboard.run()
-        thread.join(5)
+        run_driven(dashboard, drive)
     return {"errors": errors, **seen}
 
 
