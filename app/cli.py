@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import argparse
 import errno
+import os
 import signal
 import sys
+import threading
 
 from touchanything.app.commands import (
     bench_command,
@@ -47,7 +49,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
-    previous = signal.signal(signal.SIGTERM, _terminate)
+    previous, previous_hook = signal.signal(signal.SIGTERM, _terminate), sys.unraisablehook
+    sys.unraisablehook = _redeliver_interruptions
     try:
         return args.run(args)
     except UserError as exc:
@@ -67,11 +70,23 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + signal.SIGTERM
     finally:
         signal.signal(signal.SIGTERM, previous)
+        sys.unraisablehook = previous_hook
 
 
 def _terminate(signum: int, frame: object) -> None:
     """SIGTERM: stop as Ctrl-C does (outputs being written are removed on the way out)."""
     raise Terminated
+
+
+def _redeliver_interruptions(unraisable) -> None:
+    """A Ctrl-C or SIGTERM that arrived while Python ran a callback it cannot raise from (a weak reference's, a
+    finaliser's) would be swallowed there: it is sent again a moment later, from another thread, to be raised
+    where the command can stop (and again, should that one land in a callback too)."""
+    for kind, signum in ((Terminated, signal.SIGTERM), (KeyboardInterrupt, signal.SIGINT)):
+        if isinstance(unraisable.exc_value, kind):
+            threading.Timer(0.01, os.kill, (os.getpid(), signum)).start()
+            return
+    sys.__unraisablehook__(unraisable)
 
 
 if __name__ == "__main__":

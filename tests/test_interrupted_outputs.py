@@ -36,7 +36,7 @@ def wait_for_partial(folder: Path, child: subprocess.Popen, seconds: float = 120
 @pytest.mark.parametrize("signum, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
 def test_a_signal_during_convert_leaves_nothing_half_written(tmp_path, signum, status):
     out = tmp_path / "h5"
-    child = start(["convert", str(SAMPLE_DIR), str(out), "--compression-level", "0"])
+    child = start(["convert", str(SAMPLE_DIR), str(out), "--compression-level", "1"])
     wait_for_partial(out, child)
     child.send_signal(signum)
     _, err = child.communicate(timeout=120)
@@ -57,12 +57,12 @@ def test_sigterm_during_export_lerobot_leaves_no_half_dataset(tmp_path):
 
 def test_what_a_killed_convert_left_is_removed_and_named_by_the_next_run(tmp_path, capsys):
     out = tmp_path / "h5"
-    child = start(["convert", str(SAMPLE_DIR), str(out), "--compression-level", "0"])
+    child = start(["convert", str(SAMPLE_DIR), str(out), "--compression-level", "1"])
     partial = wait_for_partial(out, child)
     child.kill()
     child.wait(timeout=30)
     assert partial.exists()  # SIGKILL: no chance to clean up
-    assert main(["convert", str(SAMPLE_DIR), str(out), "--compression-level", "0", "--overwrite"]) == 0
+    assert main(["convert", str(SAMPLE_DIR), str(out), "--compression-level", "1", "--overwrite"]) == 0
     err = capsys.readouterr().err
     assert f"removed {partial}: left half-written by an interrupted run (process {child.pid})" in err
     assert not list(out.rglob(f"*{PARTIAL}*"))

@@ -132,9 +132,6 @@ def run(args: argparse.Namespace) -> int:
         return run_on_gpu(args, device)
     frames = check_arguments(args)
     pairs = held_out_paths(args.data, args.splits)
-    if len(pairs) < FEW_TRAJECTORIES:
-        print(f"warning: only {len(pairs)} held-out trajectories: the 95 % intervals are wide (use a dataset root with "
-              f"at least {FEW_TRAJECTORIES}, e.g. data/heldout from scripts/make_datasets.sh)", file=sys.stderr)
     models = load_models(args.models)
     if args.quick:
         name = DEFAULT_MODEL if DEFAULT_MODEL in models else next(iter(models))
@@ -144,6 +141,9 @@ def run(args: argparse.Namespace) -> int:
 
 def atlas(args: argparse.Namespace, models: dict[str, tuple[TactileModel, Path]], held_out: HeldOut) -> int:
     clip = first_latency_clip([path for path, _ in held_out.pairs], LATENCY_CLIP_FRAMES)
+    if len(held_out.pairs) < FEW_TRAJECTORIES:  # said once the data read (an error stays one line)
+        print(f"warning: only {len(held_out.pairs)} held-out trajectories: the 95 % intervals are wide (use a dataset "
+              f"root with at least {FEW_TRAJECTORIES}, e.g. data/heldout from scripts/make_datasets.sh)", file=sys.stderr)
     started = time.perf_counter()
 
     def progress(message: str) -> None:
