@@ -3,10 +3,8 @@ from __future__ import annotations
 
 import argparse
 import errno
-import os
 import signal
 import sys
-import threading
 
 from touchanything.app.commands import (
     bench_command,
@@ -26,6 +24,7 @@ from touchanything.app.commands import (
     split_command,
     train_command,
 )
+from touchanything.app.interruptions import stoppable
 from touchanything.devices.errors import Terminated, UserError
 
 COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command, train_command,
@@ -49,10 +48,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
-    previous, previous_hook = signal.signal(signal.SIGTERM, _terminate), sys.unraisablehook
-    sys.unraisablehook = _redeliver_interruptions
     try:
-        return args.run(args)
+        with stoppable():
+            return args.run(args)
     except UserError as exc:
         print(f"touchanything {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -68,25 +66,6 @@ def main(argv: list[str] | None = None) -> int:
     except Terminated:
         print(f"touchanything {args.command}: terminated", file=sys.stderr)
         return 128 + signal.SIGTERM
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        sys.unraisablehook = previous_hook
-
-
-def _terminate(signum: int, frame: object) -> None:
-    """SIGTERM: stop as Ctrl-C does (outputs being written are removed on the way out)."""
-    raise Terminated
-
-
-def _redeliver_interruptions(unraisable) -> None:
-    """A Ctrl-C or SIGTERM that arrived while Python ran a callback it cannot raise from (a weak reference's, a
-    finaliser's) would be swallowed there: it is sent again a moment later, from another thread, to be raised
-    where the command can stop (and again, should that one land in a callback too)."""
-    for kind, signum in ((Terminated, signal.SIGTERM), (KeyboardInterrupt, signal.SIGINT)):
-        if isinstance(unraisable.exc_value, kind):
-            threading.Timer(0.01, os.kill, (os.getpid(), signum)).start()
-            return
-    sys.__unraisablehook__(unraisable)
 
 
 if __name__ == "__main__":

@@ -132,7 +132,7 @@ def _has_dead_column(seed: int) -> bool:
 
 @pytest.mark.parametrize("argv, message", [
     (["--episodes", "0"], "--episodes must be at least 1"),
-    (["--episodes", "2", "--seconds", "-3"], "--seconds must be at least 1"),
+    (["--episodes", "2", "--seconds", "-3"], "--seconds must be 1–3600"),
     (["--episodes", "2", "--workers", "0"], "--workers must be at least 1"),
 ])
 def test_simulate_bad_arguments(tmp_path, capsys, argv, message):
