@@ -199,13 +199,16 @@ def test_the_model_axis_targets_judge_faster_and_more_accurate_models_against_th
             row("big/torch-fp32/all", 20.0, 0.53, (0.505, 0.55)), row("big/onnx-int8/all", 9.0, 0.53, (0.505, 0.55)),
             row("baseline_pose/torch-fp32/all", 2.0, 0.5, (0.47, 0.53))]
     comparisons = [{"setting": "pico/torch-fp32/all", "against": "baseline_pose/torch-fp32/all",
-                    "delta_contact_iou": [0.03, 0.012, 0.05]}]
+                    "delta_contact_iou": [0.03, 0.012, 0.05]},
+                   {"setting": "big/torch-fp32/all", "against": "nano/torch-fp32/all",
+                    "per_split": {"test_unseen": {"delta_volumetric_iou": [0.04, 0.02, 0.06]}}}]
     checks = {c["target"]: c for c in model_axis_checks(rows, "nano", comparisons)}
     assert checks["pico (faster than nano): ONNX int8 all views p99 (ms)"]["met"] is True
     assert checks["pico: contact IoU minus baseline_pose's, low end of the paired 95 % interval"]["value"] == 0.012
     assert checks["big (more accurate than nano): V-IoU on unseen objects"]["met"] is True
     low_end = checks["big: low end of its unseen V-IoU interval minus nano's unseen V-IoU"]
     assert low_end["value"] == pytest.approx(0.015) and low_end["met"] is True
+    assert checks["big: low end of the paired interval of its unseen V-IoU minus nano's"]["value"] == 0.02
     assert not any(name.startswith(("nano", "baseline_pose")) for name in checks)
     rows[3]["p99_ms"] = 2.0  # faster than nano, but not within 1.5 ms
     rows[4]["per_split"]["test_unseen"]["volumetric_iou_ci95"] = [0.48, 0.55]  # its interval reaches below nano's point

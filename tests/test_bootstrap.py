@@ -82,6 +82,8 @@ def test_rows_get_intervals_per_split_and_paired_comparisons():
     assert set(comparisons) == {("nano/onnx-int8/all", "nano/torch-fp32/all"), ("tiny/torch-fp32/all", "nano/torch-fp32/all")}
     int8 = comparisons[("nano/onnx-int8/all", "nano/torch-fp32/all")]
     assert int8["kind"] == "setting" and int8["delta_volumetric_iou"] == pytest.approx([-0.1 / 3] * 3)
+    assert int8["per_split"]["test_seen"]["delta_volumetric_iou"] == pytest.approx([0.0] * 3)
+    assert int8["per_split"]["test_unseen"]["delta_volumetric_iou"] == pytest.approx([-0.1] * 3)
     assert comparisons[("tiny/torch-fp32/all", "nano/torch-fp32/all")]["delta_volumetric_iou"] == pytest.approx([0.2] * 3)
 
 

@@ -57,9 +57,9 @@ def add_intervals(rows: list[dict], trajectories: list[dict]) -> None:
 
 
 def paired_comparisons(rows: list[dict], trajectories: list[dict], base_models: tuple[str, ...]) -> list[dict]:
-    """{setting, against, kind ("setting" | "model"), trajectories, delta_<metric>: [mean, low, high]} for every
-    row with accuracy against its reference setting, and every model's reference against each of `base_models`'
-    (the default model, the pose-only baseline)."""
+    """{setting, against, kind ("setting" | "model"), trajectories, delta_<metric>: [mean, low, high], per_split:
+    {split: {delta_<metric>}}} for every row with accuracy against its reference setting, and every model's
+    reference against each of `base_models`' (the default model, the pose-only baseline)."""
     resampler = Resampler([t["split"] for t in trajectories])
     measured = {row["setting"]: row for row in rows if row.get("per_trajectory") is not None}
     bases = [BenchSetting(model).name() for model in base_models]
@@ -71,11 +71,25 @@ def paired_comparisons(rows: list[dict], trajectories: list[dict], base_models: 
             pairs.append((name, reference, "setting"))
         elif reference == name and not setting.blank:
             pairs += [(name, base, "model") for base in bases if base != name and base in measured]
+    splits = [t["split"] for t in trajectories]
+    groups = {name: np.array([s == name for s in splits]) for name in dict.fromkeys(splits)}
+    split_resamplers = {name: Resampler([name] * int(keep.sum())) for name, keep in groups.items()}
     out = []
     for name, against, kind in pairs:
         a, b = measured[name]["per_trajectory"], measured[against]["per_trajectory"]
         entry = {"setting": name, "against": against, "kind": kind, "trajectories": len(trajectories)}
-        for metric in INTERVAL_METRICS:
-            entry[f"delta_{metric}"] = list(resampler.difference(a[metric], b[metric]))
+        entry.update(_deltas(resampler, a, b))
+        entry["per_split"] = {split: _deltas(split_resamplers[split], a, b, keep) for split, keep in groups.items()}
         out.append(entry)
+    return out
+
+
+def _deltas(resampler: Resampler, a: dict, b: dict, keep: np.ndarray | None = None) -> dict:
+    """{delta_<metric>: [mean, low, high]} of the paired difference a − b (over the trajectories `keep`)."""
+    out = {}
+    for metric in INTERVAL_METRICS:
+        x, y = np.asarray(a[metric], np.float64), np.asarray(b[metric], np.float64)
+        if keep is not None:
+            x, y = x[keep], y[keep]
+        out[f"delta_{metric}"] = list(resampler.difference(x, y))
     return out
