@@ -106,7 +106,7 @@ class HostData(TorchFunctionMode):
         return func(*args, **(kwargs or {}))
 
 
-@pytest.mark.parametrize("name", ["nano", "tiny", "small", "bundled nano", "bundled baseline_frames"])
+@pytest.mark.parametrize("name", ["nano", "tiny", "small", "pico", "bundled nano", "bundled baseline_frames", "bundled pico"])
 def test_the_captured_halves_make_no_tensor_from_host_data(name):
     torch.manual_seed(0)
     model = load_model(bundled_models()[name.split()[1]]) if name.startswith("bundled") else TouchAnything(preset(name))

@@ -73,7 +73,7 @@ def test_project_configs_use_the_official_structure_and_round_trip(path, tmp_pat
 
 
 def test_bundled_model_configs_match_their_training_configs():
-    for name in ("nano", "nano_pose_only", "baseline_pose", "baseline_frames"):
+    for name in ("nano", "nano_pose_only", "baseline_pose", "baseline_frames", "pico"):
         assert train_config_from_file(ROOT / "models" / name / "config.yaml") == train_config_from_file(ROOT / "configs" / f"{name}.yaml")
 
 
