@@ -2,9 +2,9 @@
 videos, the trackers) through the rig clock into the live engine (bundled nano, torch fp32, three views), the
 dashboard's state polled at 30 Hz as the dashboard does (no window), and the recorder writing the session.
 
-    python benchmarks/soak.py [--minutes 30] [--json docs/bench/soak.json] [--md docs/bench/soak.md]
+    python benchmarks/soak.py [--minutes 30] [--row-seconds 60] [--json docs/bench/soak.json] [--md docs/bench/soak.md]
 
-Per minute: resident memory, capture-to-prediction latency p50/p99 of the predictions the dashboard saw,
+Per minute (a row of `--row-seconds`, 60 by default; the test suite's short soak uses shorter rows): resident memory, capture-to-prediction latency p50/p99 of the predictions the dashboard saw,
 engine drops, recorder drops, rig-clock skipped ticks, open file descriptors and threads. Targets: memory
 growth ≤ 50 MB after the first minute, latency p99 and thread / fd counts flat, recorder drops 0.
 """
@@ -55,8 +55,9 @@ class MinuteCounters:
         return delta
 
 
-def soak(minutes: int, progress=print) -> dict:
-    """Run the live path for `minutes`; returns {"minutes": [row per minute], "summary": {...}}."""
+def soak(minutes: int, progress=print, row_seconds: float = 60.0) -> dict:
+    """Run the live path for `minutes` rows of `row_seconds` each; returns {"minutes": [row per minute],
+    "summary": {...}}."""
     from touchanything.app.commands.live_command import open_live_session
 
     with tempfile.TemporaryDirectory(prefix="touchanything-soak-") as folder:
@@ -69,7 +70,7 @@ def soak(minutes: int, progress=print) -> dict:
         counters, rows, seen = MinuteCounters(session), [], -1
         try:
             for index in range(minutes):
-                latencies, end = [], time.monotonic() + 60
+                latencies, end = [], time.monotonic() + row_seconds
                 while time.monotonic() < end:
                     prediction = session.state().prediction
                     if prediction is not None and prediction.frame_index != seen:
@@ -123,10 +124,11 @@ def markdown(record: dict) -> str:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=int, default=30)
+    parser.add_argument("--row-seconds", type=float, default=60.0, help="length of a row (default 60: a row a minute)")
     parser.add_argument("--json", type=Path)
     parser.add_argument("--md", type=Path)
     args = parser.parse_args()
-    record = soak(args.minutes, progress=lambda line: print(line, file=sys.stderr, flush=True))
+    record = soak(args.minutes, lambda line: print(line, file=sys.stderr, flush=True), args.row_seconds)
     record.update(machine=f"{os.cpu_count()} CPU cores ({platform.machine()}), Python {platform.python_version()}",
                   command="python benchmarks/soak.py " + " ".join(sys.argv[1:]))
     for path, text in ((args.json, json.dumps(record, indent=1) + "\n"), (args.md, markdown(record))):

@@ -76,6 +76,35 @@ def test_a_budget_picks_the_most_accurate_setting_that_fits(atlas):
             choose_within_budget(rows, bad, measure, progress=lambda line: None)
 
 
+def test_a_budget_counts_the_look_ahead_of_centre_and_stitched_outputs(atlas, shas):
+    from helpers.atlas_file import atlas_row
+    from touchanything.inference.evaluation.atlas import AtlasRow, choice_line
+
+    rows = [row for row in (AtlasRow(parse_setting(r["setting"]), r["checkpoint_sha256"], 108, r["volumetric_iou"],
+                                     tuple(r["volumetric_iou_ci95"]), r["contact_iou"], tuple(r["contact_iou_ci95"]),
+                                     r["p99_ms"])
+                            for r in (atlas_row("nano/torch-fp32/all/stitched", shas["nano"], 0.62, 8.0),
+                                      atlas_row("nano/torch-fp32/all/centre", shas["nano"], 0.61, 8.0),
+                                      atlas_row("nano/torch-fp32/all", shas["nano"], 0.60, 8.0)))]
+    measured = []
+
+    def measure(row):
+        measured.append(row.name)
+        return 8.0
+
+    # 1000 / 30 × 6 = 200 ms for the centre frame, × 14 = 466.7 ms stitched: 8 + 200 fits 210 ms, 8 + 466.7 does not
+    choice = choose_within_budget(rows, 210.0, measure, progress=lambda line: None)
+    assert choice.row.name == "nano/torch-fp32/all/centre" and measured == ["nano/torch-fp32/all/centre"]
+    assert "p99 8.00 ms here + look-ahead 200 ms, within 210 ms; 1 more accurate setting(s) show their frame too " \
+           "late" in choice_line(choice, 210.0)
+    measured.clear()
+    choice = choose_within_budget(rows, 207.0, measure, progress=lambda line: None)  # 208 ms: over
+    assert choice.row.name == "nano/torch-fp32/all" and measured == ["nano/torch-fp32/all/centre", "nano/torch-fp32/all"]
+    assert choose_within_budget(rows, 475.0, measure, progress=lambda line: None).row.name == "nano/torch-fp32/all/stitched"
+    with pytest.raises(UserError, match="every setting of the atlas waits longer for its output"):
+        choose_within_budget(rows[:2], 150.0, measure, progress=lambda line: None)
+
+
 def run_main(argv, capsys) -> tuple[int, str, str]:
     code = main(argv)
     captured = capsys.readouterr()

@@ -15,7 +15,7 @@ from touchanything.inference.evaluation.bench import BenchPlan, bench_model, nai
 from touchanything.inference.evaluation.bench_accuracy import HeldOut, agreement_sums
 from touchanything.inference.evaluation.bench_data import latency_clip
 from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown, gpu_settings
-from touchanything.inference.evaluation.bench_plot import MIN_ACCURACY_SPAN, frontier_steps, pareto_figure, pareto_front
+from touchanything.inference.evaluation.bench_plot import MIN_ACCURACY_SPAN, frontier_steps, named_front, pareto_figure, pareto_front
 from touchanything.inference.evaluation.bench_report import target_checks, write_outputs
 from touchanything.inference.evaluation.bench_setting import settings_for
 from touchanything.inference.model.model_config import preset
@@ -101,6 +101,15 @@ def test_pareto_plot_reads_plainly_when_settings_are_nearly_equal():
     frontier = next(line for line in ax.get_lines() if line.get_label() == "Pareto frontier")
     assert list(zip(*frontier.get_data())) == [(12.0, 0.1459300), (30.0, 0.1459300), (30.0, 0.1459307)]
     plt.close(fig)
+
+
+def test_frontier_labels_skip_equal_and_crowded_settings():
+    # 0 and 1 are 0.0005 apart (one label: the faster, 0); 3 is beaten by 4; 0's label would sit 0.02 under 2's at
+    # latencies 1.2× apart (crowded with a 0.05 gap, apart with a 0.01 gap)
+    points = [(1.0, 0.50), (1.1, 0.5005), (1.2, 0.52), (5.0, 0.521), (1.5, 0.60)]
+    assert named_front(points, gap=0.05) == [4, 2]
+    assert named_front(points, gap=0.01) == [4, 2, 0]
+    assert named_front([(1.0, 0.5), (2.0, 0.51)], gap=0.05) == [1, 0]  # 2× apart in latency: both named
 
 
 def test_frontier_is_a_staircase_run_on_to_the_slowest_setting():

@@ -1,6 +1,6 @@
-"""Two minutes of the soak benchmark (benchmarks/soak.py; the 30-minute figures are in docs/bench/soak.md): the
-simulated rig, the live engine, the dashboard's state and the recorder stay flat. Margins are generous: this
-runs on 2 shared cores."""
+"""Two 25-second rows of the soak benchmark (benchmarks/soak.py, whose rows are a minute each by default; the
+30-minute figures are in docs/bench/soak.md): the simulated rig, the live engine, the dashboard's state and the
+recorder stay flat. Margins are generous: this runs on 2 shared cores."""
 from __future__ import annotations
 
 import json
@@ -15,9 +15,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.mark.slow
 @pytest.mark.multiprocess
-def test_two_minutes_of_the_live_path_stay_flat(tmp_path):
+def test_two_rows_of_the_live_path_stay_flat(tmp_path):
     out = tmp_path / "soak.json"
-    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "soak.py"), "--minutes", "2", "--json", str(out)],
+    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "soak.py"), "--minutes", "2", "--row-seconds", "25", "--json", str(out)],
                           capture_output=True, text=True, timeout=600, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     record = json.loads(out.read_text())
@@ -25,5 +25,5 @@ def test_two_minutes_of_the_live_path_stay_flat(tmp_path):
     assert record["summary"]["memory_growth_after_first_minute_mb"] <= 60
     assert abs(last["threads"] - first["threads"]) <= 2 and abs(last["fds"] - first["fds"]) <= 4
     assert last["predictions_seen"] > 60 and last["latency_p99_ms"] <= 3 * first["latency_p99_ms"] + 200
-    assert last["recorder_written"] > 1500 and last["recorder_dropped"] <= 0.02 * last["recorder_written"]
-    assert last["clock_ticks"] >= 1500
+    assert last["recorder_written"] > 600 and last["recorder_dropped"] <= 0.02 * last["recorder_written"]
+    assert last["clock_ticks"] >= 600

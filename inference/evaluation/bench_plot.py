@@ -30,6 +30,30 @@ def frontier_steps(points: list[tuple[float, float]]) -> list[tuple[float, float
     return steps + [(right, front[-1][1])] if right > steps[-1][0] else steps
 
 
+LABEL_GAP = 0.05
+"""A frontier setting is named unless a more accurate named one sits within this share of the accuracy axis
+above it and within LABEL_WIDTH of its latency (their labels would overlap)."""
+LABEL_WIDTH = 1.7
+"""The latency ratio a 7-point setting name spans on the plot's log axis."""
+EQUAL_ACCURACY = 0.001
+"""Frontier settings closer than this in accuracy read as one: only the fastest of them is named."""
+
+
+def named_front(points: list[tuple[float, float]], gap: float) -> list[int]:
+    """The frontier points to name on the plot (`gap`: accuracy units, LABEL_GAP of the axis): most accurate
+    first, the fastest of each group within EQUAL_ACCURACY, skipping a point whose label would overlap a named
+    one's."""
+    front, named = pareto_front(points), []
+    for i in sorted(front, key=lambda i: -points[i][1]):
+        x, y = points[i]
+        faster_equal = any(points[j][0] < x and y - points[j][1] < EQUAL_ACCURACY for j in front)
+        crowded = any(points[j][1] - y < gap and max(x, points[j][0]) < LABEL_WIDTH * min(x, points[j][0])
+                      for j in named)
+        if not faster_equal and not crowded:
+            named.append(i)
+    return named
+
+
 def plotted_rows(rows: list[dict]) -> list[dict]:
     """The settings a user can run that have a p99 latency and a finite volumetric IoU (pose-only twins left out)."""
     return [r for r in rows if not r.get("blank") and r.get("p99_ms") is not None
@@ -60,8 +84,6 @@ def _panel(ax, rows: list[dict], metric: str, title: str, p99_target: float | No
                     capsize=2, color=colour, label=model, alpha=0.85)
     if steps := frontier_steps(points):
         ax.plot(*zip(*steps), "k--", lw=1, label="Pareto frontier")
-    for i in pareto_front(points):
-        ax.annotate(rows[i]["setting"], points[i], fontsize=7, xytext=(4, -10), textcoords="offset points")
     if p99_target is not None:
         ax.axvline(p99_target, color="grey", lw=0.8, ls=":")
     ax.set_xscale("log")
@@ -73,6 +95,8 @@ def _panel(ax, rows: list[dict], metric: str, title: str, p99_target: float | No
         low, high = min(values), max(values)
         pad = max(MIN_ACCURACY_SPAN - (high - low), 0.0) / 2 + 0.08 * (high - low)
         ax.set_ylim(low - pad, high + pad)
+        for i in named_front(points, LABEL_GAP * (high - low + 2 * pad)):
+            ax.annotate(rows[i]["setting"], points[i], fontsize=7, xytext=(4, -10), textcoords="offset points")
     ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter(useOffset=False))
     ax.set_xlabel("p99 per-frame engine latency (ms, log scale)")
     ax.set_ylabel(f"{title} (official, held-out)")
