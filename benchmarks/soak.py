@@ -4,7 +4,8 @@ dashboard's state polled at 30 Hz as the dashboard does (no window), and the rec
 
     python benchmarks/soak.py [--minutes 30] [--row-seconds 60] [--json docs/bench/soak.json] [--md docs/bench/soak.md]
 
-Per minute (a row of `--row-seconds`, 60 by default; the test suite's short soak uses shorter rows): resident memory, capture-to-prediction latency p50/p99 of the predictions the dashboard saw,
+Per minute (a row of `--row-seconds`, 60 by default; the test suite's short soak uses shorter rows):
+resident memory, capture-to-prediction latency p50/p99 of the predictions the dashboard saw,
 engine drops, recorder drops, rig-clock skipped ticks, open file descriptors and threads. Targets: memory
 growth ≤ 50 MB after the first minute, latency p99 and thread / fd counts flat, recorder drops 0.
 """

@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.mark.multiprocess
 def test_two_rows_of_the_live_path_stay_flat(tmp_path):
     out = tmp_path / "soak.json"
-    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "soak.py"), "--minutes", "2", "--row-seconds", "25", "--json", str(out)],
+    soak = [str(ROOT / "benchmarks" / "soak.py"), "--minutes", "2", "--row-seconds", "25", "--json", str(out)]
+    proc = subprocess.run([sys.executable, *soak],
                           capture_output=True, text=True, timeout=600, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     record = json.loads(out.read_text())
