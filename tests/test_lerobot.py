@@ -64,6 +64,7 @@ def test_export_writes_the_v3_format(two_episodes, tmp_path, capsys):
     key = "videos/observation.images.ego"
     assert [(e[f"{key}/from_timestamp"], e[f"{key}/to_timestamp"]) for e in episodes] == [(0.0, 12 / 30), (12 / 30, 21 / 30)]
     assert episodes[1]["tasks"] == ["press button"] and len(episodes[1]["stats/observation.tactile/q50"]) == 2
+    assert [e["source"] for e in episodes] == ["Home/pick_up_bottle/001", "Office/press_button/002"]  # no local path
     with av.open(str(out / "videos" / "observation.images.ego" / "chunk-000" / "file-000.mp4")) as video:
         stamps = [float(frame.pts * frame.time_base) for frame in video.decode(video.streams.video[0])]
     assert np.allclose(stamps, np.arange(21) / 30, atol=1e-6)  # LeRobot finds frames by time, within 1e-4 s
@@ -183,3 +184,11 @@ def test_eval_and_replay_run_on_the_export(sample_export, tmp_path, capsys):
     shutil.copytree(sample_export, copy)
     assert main(["replay", str(copy / "episode_000001"), "--out", str(tmp_path / "r.mp4")]) == 0
     assert "frames    300 written, 300 with a prediction" in capsys.readouterr().out
+
+
+def test_an_episode_is_named_by_its_place_under_the_exported_root():
+    from touchanything.devices.episodes.lerobot_export import source_name
+
+    root = Path("/data/raw")
+    assert source_name(root, root / "Home" / "press" / "001") == "Home/press/001"
+    assert source_name(root / "Home" / "press" / "001.hdf5", root / "Home" / "press" / "001.hdf5") == "001.hdf5"

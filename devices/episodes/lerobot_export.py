@@ -6,6 +6,7 @@ the exported episodes (`ROOT/episode_NNNNNN`), so `eval --data OUT` evaluates th
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -73,10 +74,17 @@ def _plan(sources: list[Path], summary: ExportSummary) -> tuple[list[Path], tupl
     return keep, views, {v: first[0][v] for v in views}, round(first[1])
 
 
-def _extra(episode: Episode) -> dict[str, str]:
+def _extra(episode: Episode, source: str) -> dict[str, str]:
     attrs = episode.pressure.attrs if episode.pressure is not None else {}
     return {"scene": episode.scene, "task_name": episode.task, "trajectory_id": episode.trajectory_id,
-            "source": str(episode.path), "pressure_attrs": json.dumps(attrs)}
+            "source": source, "pressure_attrs": json.dumps(attrs)}
+
+
+def source_name(root: Path, path: Path) -> str:
+    """Where an exported episode came from, relative to the exported ROOT ("Home/press_button/001"; the episode's
+    own name when ROOT is that episode): no local absolute path goes into a dataset that may be published."""
+    relative = Path(os.path.relpath(path, root))
+    return path.name if relative == Path(".") else relative.as_posix()
 
 
 def _write_split(root: Path, folder: Path, written: list[Path]) -> None:
@@ -106,7 +114,7 @@ def export_lerobot(root: Path, out: Path, overwrite: bool = False,
         writer = LeRobotWriter(partial, fps, summary.views, sizes)
         for path in paths:
             with open_episode(path) as episode:
-                writer.add(episode, task_text(episode.task), _extra(episode))
+                writer.add(episode, task_text(episode.task), _extra(episode, source_name(root, path)))
             summary.episodes, summary.frames = summary.episodes + 1, summary.frames + episode.num_frames
             on_episode(path)
         writer.close()
