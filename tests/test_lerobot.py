@@ -159,9 +159,10 @@ def sample_export(tmp_path_factory) -> Path:
 
 @pytest.mark.slow
 def test_the_bundled_sample_round_trips_through_replay(sample_export):
-    sources = sorted(p for p in SAMPLE.glob("*/*/*") if p.is_dir())
-    for index, source in enumerate(sources):
-        with open_episode(source) as raw, open_episode(sample_export / f"episode_{index:06d}") as back:
+    episodes = pq.read_table(sample_export / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
+    assert sorted(e["source"] for e in episodes) == sorted(str(p.relative_to(SAMPLE)) for p in SAMPLE.glob("*/*/*") if p.is_dir())
+    for index, row in enumerate(episodes):
+        with open_episode(SAMPLE / row["source"]) as raw, open_episode(sample_export / f"episode_{index:06d}") as back:
             _same_episode(raw, back, [0, 150, raw.num_frames - 1])
             a = list(ReplaySource(raw, ReplayConfig(speed=None)))
             b = list(ReplaySource(back, ReplayConfig(speed=None)))
@@ -175,7 +176,11 @@ def test_the_bundled_sample_round_trips_through_replay(sample_export):
 @pytest.mark.slow
 def test_eval_and_replay_run_on_the_export(sample_export, tmp_path, capsys):
     split = json.loads((sample_export / "split.json").read_text())
-    assert sorted(sum(split.values(), [])) == ["episode_000000", "episode_000001", "episode_000002"]
+    # episodes in the split's order (the sample: one train, one val, one test_seen episode), each list a range
+    assert split == {"train": ["episode_000000"], "val": ["episode_000001"], "test_seen": ["episode_000002"],
+                     "test_unseen": []}
+    info = json.loads((sample_export / "meta" / "info.json").read_text())
+    assert info["splits"] == {"train": "0:1", "val": "1:2", "test_seen": "2:3"}
     assert main(["eval", "--checkpoint", str(NANO), "--data", str(sample_export), "--split", "val", "--views", "ego",
                  "--out", str(tmp_path / "eval")]) == 0
     results = json.loads((tmp_path / "eval" / "results.json").read_text())["results"][0]["trajectories"]
@@ -192,3 +197,13 @@ def test_an_episode_is_named_by_its_place_under_the_exported_root():
     root = Path("/data/raw")
     assert source_name(root, root / "Home" / "press" / "001") == "Home/press/001"
     assert source_name(root / "Home" / "press" / "001.hdf5", root / "Home" / "press" / "001.hdf5") == "001.hdf5"
+
+
+def test_episodes_are_exported_in_the_split_s_order_with_its_ranges():
+    from touchanything.devices.episodes.lerobot_export import in_split_order
+
+    a, b, c, d, e = (Path(f"/r/{name}") for name in "abcde")
+    split = {"train": [Path("/r/d.hdf5"), Path("/r/b")], "val": [], "test_seen": [Path("/r/a")], "test_unseen": [Path("/r/zz")]}
+    # a raw root's split names the .hdf5 files convert writes: /r/d.hdf5 is the raw folder /r/d; c and e are in no list
+    assert in_split_order([a, b, c, d, e], split) == ([b, d, a, c, e], {"train": "0:2", "test_seen": "2:3"})
+    assert in_split_order([a, b], None) == ([a, b], {"train": "0:2"})

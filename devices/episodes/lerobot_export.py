@@ -87,13 +87,33 @@ def source_name(root: Path, path: Path) -> str:
     return path.name if relative == Path(".") else relative.as_posix()
 
 
-def _write_split(root: Path, folder: Path, written: list[Path]) -> None:
-    """The source's split.json over the exported episodes (entries not exported are left out)."""
+def _source_split(root: Path) -> dict[str, list[Path]] | None:
+    """The split.json of ROOT (of its folder when ROOT is one file), None when there is none."""
     split_path = (root if root.is_dir() else root.parent) / SPLIT_FILE
-    if not split_path.is_file():
+    return read_split(split_path) if split_path.is_file() else None
+
+
+def in_split_order(paths: list[Path], split: dict[str, list[Path]] | None) -> tuple[list[Path], dict[str, str]]:
+    """`paths` ordered by the split's lists (train, val, test_seen, test_unseen; episodes no list names last, in
+    their order) and LeRobot's `splits`: each non-empty list's episode range "first:end". Without a split, every
+    episode is "train", as LeRobot writes it."""
+    if split is None:
+        return paths, {"train": f"0:{len(paths)}"}
+    listed = {_source_key(p): key for key in SPLIT_KEYS for p in split[key]}
+    ordered, ranges = [], {}
+    for key in SPLIT_KEYS:
+        members = [path for path in paths if listed.get(_source_key(path)) == key]
+        if members:
+            ranges[key] = f"{len(ordered)}:{len(ordered) + len(members)}"
+            ordered += members
+    return ordered + [path for path in paths if _source_key(path) not in listed], ranges
+
+
+def _write_split(split: dict[str, list[Path]] | None, folder: Path, written: list[Path]) -> None:
+    """The source's split.json over the exported episodes (entries not exported are left out)."""
+    if split is None:
         return
     index = {_source_key(path): k for k, path in enumerate(written)}
-    split = read_split(split_path)
     out = {key: [fmt.episode_address(Path("."), index[_source_key(p)]).name for p in split[key] if _source_key(p) in index]
            for key in SPLIT_KEYS}
     (folder / SPLIT_FILE).write_text(json.dumps(out, indent=1) + "\n")
@@ -110,13 +130,15 @@ def export_lerobot(root: Path, out: Path, overwrite: bool = False,
     paths, summary.views, sizes, fps = _plan(sources, summary)
     if not paths:
         raise UserError(f"{root}: none of the {len(sources)} episodes can be exported ({summary.skipped[0]})")
+    split = _source_split(root)
+    paths, splits = in_split_order(paths, split)
     with replacing_folder(out, overwrite) as partial:
-        writer = LeRobotWriter(partial, fps, summary.views, sizes)
+        writer = LeRobotWriter(partial, fps, summary.views, sizes, splits)
         for path in paths:
             with open_episode(path) as episode:
                 writer.add(episode, task_text(episode.task), _extra(episode, source_name(root, path)))
             summary.episodes, summary.frames = summary.episodes + 1, summary.frames + episode.num_frames
             on_episode(path)
         writer.close()
-        _write_split(root, partial, paths)
+        _write_split(split, partial, paths)
     return summary

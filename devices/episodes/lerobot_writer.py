@@ -85,12 +85,14 @@ class _OpenFile:
 @dataclass
 class LeRobotWriter:
     """Write episodes with `add`, then `close()` for the metadata. `views`: the video features, each (width,
-    height) in `sizes`; every episode must have them all, at that size, at `fps`."""
+    height) in `sizes`; every episode must have them all, at that size, at `fps`. `splits`: info.json's split
+    name → episode range "first:end"."""
 
     folder: Path
     fps: int
     views: tuple[str, ...]
     sizes: dict[str, tuple[int, int]]
+    splits: dict[str, str]
     episodes: list[dict] = field(default_factory=list)
     tasks: dict[str, int] = field(default_factory=dict)
     _stats: list[dict[str, dict]] = field(default_factory=list)
@@ -210,7 +212,7 @@ class LeRobotWriter:
                 "total_episodes": len(self.episodes), "total_frames": self._frames, "total_tasks": len(self.tasks),
                 "chunks_size": fmt.CHUNKS_SIZE,
                 "data_files_size_in_mb": fmt.DATA_FILE_MB, "video_files_size_in_mb": fmt.VIDEO_FILE_MB, "fps": self.fps,
-                "splits": {"train": f"0:{len(self.episodes)}"}, "data_path": fmt.DATA_PATH, "video_path": fmt.VIDEO_PATH,
+                "splits": self.splits, "data_path": fmt.DATA_PATH, "video_path": fmt.VIDEO_PATH,
                 "features": features}
 
 
