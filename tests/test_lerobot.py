@@ -78,6 +78,26 @@ def test_export_writes_the_v3_format(two_episodes, tmp_path, capsys):
     assert (tactile[~TactileLayout.default().valid] == 0).all()  # cells outside the layout: no value, 0
 
 
+def test_rerun_s_lerobot_importer_opens_the_export(two_episodes, tmp_path):
+    """Rerun's importer (crates/store/re_lerobot) reads `names` as None, a string, a flat or nested list, or a map
+    with exactly one entry, and rejects the whole dataset otherwise; the rerun CLI beside this Python imports it."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "lerobot"
+    assert main(["export-lerobot", str(two_episodes), str(out)]) == 0
+    features = json.loads((out / "meta" / "info.json").read_text())["features"]
+    for name, feature in features.items():
+        names = feature["names"]
+        assert names is None or isinstance(names, (str, list)) or (isinstance(names, dict) and len(names) == 1), name
+    assert features["observation.trackers"]["info"]["axes"] == ["tracker", "pose"]
+    recording = tmp_path / "x.rrd"
+    proc = subprocess.run([str(Path(sys.executable).parent / "rerun"), str(out), "--save", str(recording)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "Failed to import" not in proc.stderr, proc.stderr[-2000:]
+    assert recording.stat().st_size > 20_000  # the three views' videos at least (an empty recording is 60 bytes)
+
+
 def test_the_export_reads_back_as_the_same_episodes(two_episodes, tmp_path, capsys):
     out = tmp_path / "lerobot"
     assert main(["export-lerobot", str(two_episodes), str(out)]) == 0
@@ -207,3 +227,13 @@ def test_episodes_are_exported_in_the_split_s_order_with_its_ranges():
     # a raw root's split names the .hdf5 files convert writes: /r/d.hdf5 is the raw folder /r/d; c and e are in no list
     assert in_split_order([a, b, c, d, e], split) == ([b, d, a, c, e], {"train": "0:2", "test_seen": "2:3"})
     assert in_split_order([a, b], None) == ([a, b], {"train": "0:2"})
+
+
+def test_the_hand_order_reads_from_the_old_and_the_new_names():
+    from touchanything.devices.episodes.lerobot_episode import hand_order
+
+    old = {"axes": ["hand", "row", "column"], "hand": ["left", "right"]}  # exports written before 2026-11-27
+    for names in (old, {"hand": ["right", "left"]}, ["left", "right"]):
+        info = {"codebase_version": "v3.0", "features": {"observation.tactile": {"names": names}}}
+        stated = names["hand"] if isinstance(names, dict) else names
+        assert hand_order(info, "observation.tactile") == (stated, True)

@@ -39,14 +39,23 @@ CAPTURE_TIME = "observation.capture_time_us"
 INDEX_FEATURES = ("timestamp", "frame_index", "episode_index", "index", "task_index")
 
 FEATURE_NAMES = {
-    JOINTS: {"axes": ["hand", "joint", "xyz"], "hand": list(HANDS)},
+    JOINTS: {"hand": list(HANDS)},
     JOINTS_VALID: list(HANDS),
-    TACTILE: {"axes": ["hand", "row", "column"], "hand": list(HANDS)},
-    TRACKERS: {"axes": ["tracker", "pose"], "tracker": list(TRACKER_ROLES), "pose": ["x", "y", "z", "qw", "qx", "qy", "qz"]},
+    TACTILE: {"hand": list(HANDS)},
+    TRACKERS: {"tracker": list(TRACKER_ROLES)},
     TRACKERS_VALID: list(TRACKER_ROLES),
     CAPTURE_TIME: None,
 }
-"""The `names` of each exported feature: the hand order is stated in every hand feature (official: left, right)."""
+"""The `names` of each exported feature: the hand order is stated in every hand feature (official: left, right).
+Each is None, a flat list or a map with exactly one entry — the forms Rerun's LeRobot importer accepts (a map of
+two entries makes it reject the whole dataset); what each axis holds goes into the feature's `info`."""
+FEATURE_INFO = {
+    JOINTS: {"axes": ["hand", "joint", "xyz"]},
+    TACTILE: {"axes": ["hand", "row", "column"]},
+    TRACKERS: {"axes": ["tracker", "pose"], "pose": ["x", "y", "z", "qw", "qx", "qy", "qz"]},
+}
+"""The `info` of the multi-dimensional features: their axes (LeRobot and Rerun ignore it; video features carry
+their own `info` the same way)."""
 
 VIEW_ALIASES = {"ego": "ego", "main": "ego", "chest": "ego", "head": "ego", "wrist_left": "wrist_left",
                 "left_wrist": "wrist_left", "wrist_right": "wrist_right", "right_wrist": "wrist_right"}

@@ -205,7 +205,8 @@ class LeRobotWriter:
                   fmt.TRACKERS: [len(TRACKER_ROLES), 7], fmt.TRACKERS_VALID: [len(TRACKER_ROLES)], fmt.CAPTURE_TIME: [1]}
         dtypes = {fmt.JOINTS_VALID: "bool", fmt.TRACKERS_VALID: "bool", fmt.CAPTURE_TIME: "int64"}
         for name, shape in shapes.items():
-            features[name] = {"dtype": dtypes.get(name, "float32"), "shape": shape, "names": fmt.FEATURE_NAMES[name]}
+            features[name] = {"dtype": dtypes.get(name, "float32"), "shape": shape, "names": fmt.FEATURE_NAMES[name],
+                              **({"info": fmt.FEATURE_INFO[name]} if name in fmt.FEATURE_INFO else {})}
         for name in fmt.INDEX_FEATURES:
             features[name] = {"dtype": "float32" if name == "timestamp" else "int64", "shape": [1], "names": None}
         return {"codebase_version": fmt.CODEBASE_VERSION, "robot_type": fmt.ROBOT_TYPE,
