@@ -129,6 +129,8 @@ def main() -> int:
     parser.add_argument("--json", type=Path)
     parser.add_argument("--md", type=Path)
     args = parser.parse_args()
+    if args.minutes < 1 or not 1 <= args.row_seconds <= 3600:  # also NaN
+        parser.error(f"--minutes must be ≥ 1 and --row-seconds 1–3600, got {args.minutes} and {args.row_seconds}")
     record = soak(args.minutes, lambda line: print(line, file=sys.stderr, flush=True), args.row_seconds)
     record.update(machine=f"{os.cpu_count()} CPU cores ({platform.machine()}), Python {platform.python_version()}",
                   command="python benchmarks/soak.py " + " ".join(sys.argv[1:]))

@@ -77,7 +77,6 @@ def test_a_budget_picks_the_most_accurate_setting_that_fits(atlas):
 
 
 def test_a_budget_counts_the_look_ahead_of_centre_and_stitched_outputs(atlas, shas):
-    from helpers.atlas_file import atlas_row
     from touchanything.inference.evaluation.atlas import AtlasRow, choice_line
 
     rows = [row for row in (AtlasRow(parse_setting(r["setting"]), r["checkpoint_sha256"], 108, r["volumetric_iou"],

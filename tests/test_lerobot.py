@@ -92,7 +92,8 @@ def test_rerun_s_lerobot_importer_opens_the_export(two_episodes, tmp_path):
         assert names is None or isinstance(names, (str, list)) or (isinstance(names, dict) and len(names) == 1), name
     assert features["observation.trackers"]["info"]["axes"] == ["tracker", "pose"]
     recording = tmp_path / "x.rrd"
-    proc = subprocess.run([str(Path(sys.executable).parent / "rerun"), str(out), "--save", str(recording)],
+    proc = subprocess.run([str(Path(sys.executable).parent / "rerun"), str(out), "--save", str(recording),
+                           "--port", "auto"],  # its viewer server's port: a free one when 9876 is taken
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "Failed to import" not in proc.stderr, proc.stderr[-2000:]
     assert recording.stat().st_size > 20_000  # the three views' videos at least (an empty recording is 60 bytes)
