@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 JOINTS_PER_HAND = 21
+JOINT_NAMES = ("wrist",) + tuple(f"{finger}_{k}" for finger in ("thumb", "index", "middle", "ring", "pinky") for k in range(1, 5))
+"""The 21 joints in the official order: wrist, then thumb, index, middle, ring and pinky from base (1) to tip (4)."""
 MAX_ABS_XY = 1000.0
 MAX_Z = 1000.0
 WILOR_FOCAL_PER_PIXEL = 5000.0 / 256.0

@@ -10,6 +10,7 @@ import av
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from rerun.chunk import RrdReader
 
 from conftest import write_episode
 from helpers.lerobot_community import write_community_dataset
@@ -51,19 +52,19 @@ def test_export_writes_the_v3_format(two_episodes, tmp_path, capsys):
     assert "exported  2 episodes, 21 frames" in capsys.readouterr().out
     info = json.loads((out / "meta" / "info.json").read_text())
     assert info["codebase_version"] == "v3.0" and info["fps"] == 30 and info["total_frames"] == 21
-    assert info["features"]["observation.tactile"]["names"]["hand"] == ["left", "right"]
+    assert info["features"]["observation.tactile"]["shape"] == [434]  # 217 sensor cells per hand (official layout)
     assert info["features"]["observation.images.wrist_left"]["shape"] == [48, 64, 3]
     data = pq.read_table(out / "data" / "chunk-000" / "file-000.parquet")
     hf = json.loads(data.schema.metadata[b"huggingface"])["info"]["features"]
-    assert hf["observation.tactile"] == {"shape": [2, 21, 21], "dtype": "float32", "_type": "Array3D"}
-    assert hf["observation.hand_joints_valid"]["_type"] == "List" and hf["timestamp"]["_type"] == "Value"
+    assert hf["observation.tactile"] == {"feature": {"dtype": "float32", "_type": "Value"}, "length": 434, "_type": "List"}
+    assert hf["observation.tactile_valid"]["_type"] == "List" and hf["timestamp"]["_type"] == "Value"
     assert data["index"].to_pylist() == list(range(21)) and data["episode_index"].to_pylist() == [0] * 12 + [1] * 9
     assert np.allclose(data["timestamp"].to_numpy()[12:], np.arange(9) / 30)
     episodes = pq.read_table(out / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
     assert [(e["dataset_from_index"], e["dataset_to_index"]) for e in episodes] == [(0, 12), (12, 21)]
     key = "videos/observation.images.ego"
     assert [(e[f"{key}/from_timestamp"], e[f"{key}/to_timestamp"]) for e in episodes] == [(0.0, 12 / 30), (12 / 30, 21 / 30)]
-    assert episodes[1]["tasks"] == ["press button"] and len(episodes[1]["stats/observation.tactile/q50"]) == 2
+    assert episodes[1]["tasks"] == ["press button"] and len(episodes[1]["stats/observation.tactile/q50"]) == 434
     assert [e["source"] for e in episodes] == ["Home/pick_up_bottle/001", "Office/press_button/002"]  # no local path
     with av.open(str(out / "videos" / "observation.images.ego" / "chunk-000" / "file-000.mp4")) as video:
         stamps = [float(frame.pts * frame.time_base) for frame in video.decode(video.streams.video[0])]
@@ -73,9 +74,7 @@ def test_export_writes_the_v3_format(two_episodes, tmp_path, capsys):
     assert json.loads(tasks.schema.metadata[b"pandas"])["index_columns"] == ["task"]  # pandas reads the text as index
     stats = json.loads((out / "meta" / "stats.json").read_text())
     assert np.array(stats["observation.images.ego"]["mean"]).shape == (3, 1, 1) and stats["index"]["count"] == [21]
-    tactile = np.array(stats["observation.tactile"]["max"])
-    assert tactile.shape == (2, 21, 21) and np.isfinite(tactile).all()
-    assert (tactile[~TactileLayout.default().valid] == 0).all()  # cells outside the layout: no value, 0
+    assert np.array(stats["observation.tactile"]["max"]).shape == (434,) and np.array(stats["observation.state"]["q99"]).shape == (128,)
 
 
 def test_rerun_s_lerobot_importer_opens_the_export(two_episodes, tmp_path):
@@ -90,13 +89,29 @@ def test_rerun_s_lerobot_importer_opens_the_export(two_episodes, tmp_path):
     for name, feature in features.items():
         names = feature["names"]
         assert names is None or isinstance(names, (str, list)) or (isinstance(names, dict) and len(names) == 1), name
-    assert features["observation.trackers"]["info"]["axes"] == ["tracker", "pose"]
     recording = tmp_path / "x.rrd"
     proc = subprocess.run([str(Path(sys.executable).parent / "rerun"), str(out), "--save", str(recording),
                            "--port", "auto"],  # its viewer server's port: a free one when 9876 is taken
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "Failed to import" not in proc.stderr, proc.stderr[-2000:]
-    assert recording.stat().st_size > 20_000  # the three views' videos at least (an empty recording is 60 bytes)
+    scalars, names = {}, {}
+    reader = RrdReader(recording)
+    first = next(store for store in reader.recordings() if store.recording_id == "episode_0")  # one per episode
+    for chunk in reader.stream(store=first):
+        batch = chunk.to_record_batch()
+        if "Scalars:scalars" in batch.schema.names:
+            scalars.setdefault(chunk.entity_path, {}).update(zip(batch.column("frame_index").to_pylist(),
+                                                                 batch.column("Scalars:scalars").to_pylist()))
+        elif "SeriesLines:names" in batch.schema.names:
+            names[chunk.entity_path] = batch.column("SeriesLines:names").to_pylist()[0]
+    assert set(scalars) == {"/observation.state", "/observation.tactile", "/observation.trackers"}
+    # the pressure as labelled values: the right glove's cell (row 10, column 10) at frame 5 of the first episode
+    cell = names["/observation.tactile"].index("right.r10c10")
+    with open_episode(sorted(two_episodes.glob("*/*/*"))[0]) as raw:
+        assert scalars["/observation.tactile"][5][cell] == pytest.approx(float(raw.pressure.grids[5, 1, 10, 10]), abs=1e-6)
+        joint = names["/observation.state"].index("left.index_4.z")  # joint 8 (index tip), z
+        assert scalars["/observation.state"][5][joint] == pytest.approx(float(raw.wilor.joints[5, 0, 8, 2]), abs=1e-5)
+    assert names["/observation.trackers"][:4] == ["chest.x", "chest.y", "chest.z", "chest.qw"]
 
 
 def test_the_export_reads_back_as_the_same_episodes(two_episodes, tmp_path, capsys):

@@ -8,7 +8,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from touchanything.devices.episodes.lerobot_export import export_lerobot, source_episodes
+from touchanything.devices.episodes.lerobot_export import check_action, export_lerobot, source_episodes
+from touchanything.devices.episodes.lerobot_format import ACTION_CHOICES
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import add_overwrite_argument, check_output, check_outside
 
@@ -17,6 +18,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("export-lerobot", help="export episodes as a LeRobot v3.0 dataset")
     parser.add_argument("root", type=Path, help="dataset root (raw episode folders and/or .hdf5 files), or one episode")
     parser.add_argument("out", type=Path, help="the dataset folder to write (meta/, data/, videos/)")
+    parser.add_argument("--action", metavar="FEATURE", default=None,
+                        help=f"write this feature as LeRobot's `action` instead of under its own name ({', '.join(ACTION_CHOICES)}; "
+                             "e.g. observation.tactile to train a LeRobot policy to predict the pressure); off by default")
     add_overwrite_argument(parser, "OUT")
     parser.set_defaults(run=run)
 
@@ -27,15 +31,22 @@ def check_export_output(root: Path, out: Path, overwrite: bool) -> None:
     check_output(out, (root,), overwrite, whole=True)
 
 
+def _show(bar: tqdm, written: int, total: int) -> None:
+    """Move the progress bar to `written` of `total` video frames."""
+    bar.total = total
+    bar.update(written - bar.n)
+
+
 def run(args: argparse.Namespace) -> int:
+    check_action(args.action)
     if not args.root.exists():
         raise UserError(f"{args.root}: not found")
     check_export_output(args.root, args.out, args.overwrite)
     sources = source_episodes(args.root)
     if not sources:
         raise UserError(f"{args.root}: no episodes found (raw folders with chest.mp4, or .hdf5 files)")
-    with tqdm(total=len(sources), unit="episode", desc="export") as bar:
-        summary = export_lerobot(args.root, args.out, args.overwrite, lambda path: bar.update(1))
+    with tqdm(unit="frame", desc="export") as bar:
+        summary = export_lerobot(args.root, args.out, args.overwrite, args.action, lambda written, total: _show(bar, written, total))
     size = sum(p.stat().st_size for p in args.out.rglob("*") if p.is_file()) / 1e6
     print(f"exported  {summary.episodes} episodes, {summary.frames} frames, views {', '.join(summary.views)}; "
           f"{size:.1f} MB in {args.out}")

@@ -17,7 +17,8 @@ from touchanything.devices.episodes.episode_loader import (
     open_episode,
 )
 from touchanything.devices.episodes.episode_verify import verify_episode
-from touchanything.devices.episodes.lerobot_episode import count_problems, find_lerobot_episodes
+from touchanything.devices.episodes.lerobot_checks import metadata_problems
+from touchanything.devices.episodes.lerobot_episode import find_lerobot_episodes
 from touchanything.devices.episodes.raw_episode import is_raw_episode
 from touchanything.devices.errors import DataError, UserError, failure_line
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
@@ -124,7 +125,7 @@ def dataset_lines(root: Path, verify: bool = False) -> tuple[list[str], int]:
     lines.append(f"total     {total} frames ({total / 30 / 60:.1f} min at 30 fps)"
                  + (f"; {failed} trajector{'y' if failed == 1 else 'ies'} unreadable or damaged" if failed else ""))
     if lerobot and not failed:
-        lines += [f"problem   {line}" for line in count_problems(root, len(lerobot), total)]
+        lines += [f"problem   {line}" for line in metadata_problems(root, len(lerobot), total)]
     split_path = root / SPLIT_FILE
     if split_path.exists():
         try:

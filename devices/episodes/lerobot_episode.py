@@ -2,8 +2,12 @@
 (`devices.episodes.lerobot_format`), codebase v3.0 (this project's export and others) and the older
 one-file-per-episode layout of v2.x, as the community EgoTouch conversion has it.
 
-Features are found by name and shape: video features by their last name part (`VIEW_ALIASES`), the tactile maps
-as the float feature of shape (2, 21, 21), the joints (2, 21, 3), the trackers (3, 7). The hand order is taken
+This project's export (`lerobot_format.FEATURE_INFO`) is read by its features' names: the joints and seen flags
+from `observation.state`, the maps from the cells `observation.tactile`'s values are named by (NaN elsewhere and
+for hands `observation.tactile_valid` says were not measured), the trackers from `observation.trackers`; a
+feature exported as `action` says so (`info.exported_from`). Other datasets and older exports are read by name and
+shape: video features by their last name part (`VIEW_ALIASES`), the tactile maps as the float feature of shape
+(2, 21, 21), the joints (2, 21, 3), the trackers (3, 7). The hand order is taken
 from the feature's `names` (`{"hand": [...]}` or a list naming left and right); where no order is stated, a
 dataset laid out like the community EgoTouch conversion (v2.x, head camera `observation.images.main`) is
 [right, left] as that conversion documents, anything else is taken as the official [left, right] and the episode
@@ -84,24 +88,6 @@ def episode_rows(root: Path, info: dict) -> dict[int, dict]:
     return {int(row["episode_index"]): row for row in lines if isinstance(row, dict) and "episode_index" in row}
 
 
-COUNT_KEYS = ("total_episodes", "total_frames", "total_tasks")
-
-
-def count_problems(root: Path, episodes: int, frames: int) -> list[str]:
-    """What `meta/info.json` says wrongly of the dataset at `root` whose episodes were found (`episodes`) and read
-    (`frames` in all): a count that is not a whole number ≥ 0, or an episode or frame total other than found."""
-    info, path, problems = read_info(root), Path(root) / fmt.INFO_PATH, []
-    for key in COUNT_KEYS:
-        value = info.get(key)
-        if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 0):
-            problems.append(describe(path, key, f"{value!r} is not a count (a whole number ≥ 0)"))
-    for key, found in (("total_episodes", episodes), ("total_frames", frames)):
-        value = info.get(key)
-        if isinstance(value, int) and not isinstance(value, bool) and value >= 0 and value != found:
-            problems.append(describe(path, key, f"says {value}; the dataset holds {found}"))
-    return problems
-
-
 def find_lerobot_episodes(root: Path) -> list[Path]:
     """The addresses `ROOT/episode_NNNNNN` of every episode of the dataset at `root` (none when it is not one)."""
     if not fmt.is_lerobot_root(root):
@@ -150,6 +136,61 @@ def _feature(info: dict, table: pa.Table, shape: tuple[int, ...], preferred: str
             if values is not None:
                 return name, values.astype(np.float32)
     return None
+
+
+def _exported(info: dict, table: pa.Table, name: str) -> tuple[str, dict] | None:
+    """(key, feature) of this project's 1-D feature `name` (under its own name, or `action` when exported as it)."""
+    for key, feature in info["features"].items():
+        if not isinstance(feature, dict) or key not in table.column_names:
+            continue
+        extra = feature.get("info") if isinstance(feature.get("info"), dict) else {}
+        shape = feature.get("shape")
+        if ((key == name and extra.get("exported_from", name) == name) or extra.get("exported_from") == name) and \
+                isinstance(shape, list) and len(shape) == 1 and str(feature.get("dtype", "")).startswith("float"):
+            return key, feature
+    return None
+
+
+def _named(root: Path, info: dict, table: pa.Table, name: str, names: list[str]) -> np.ndarray | None:
+    """The (frames, len(names)) values of this project's feature `name` (None when there is none, or when it is
+    another dataset's feature of that name); DataError when an export of ours names its values otherwise."""
+    found = _exported(info, table, name)
+    if found is None:
+        return None
+    key, feature = found
+    values = _array(table, key, (len(names),)) if feature.get("names") == names else None
+    if values is None and isinstance(feature.get("info"), dict) and fmt.FEATURE_INFO[name].keys() <= feature["info"].keys():
+        raise DataError(root / fmt.INFO_PATH, f"{key} names", f"not the {len(names)} names this project exports "
+                                                              f"({names[0]} … {names[-1]})")
+    return values
+
+
+def _hand_state(root: Path, info: dict, table: pa.Table) -> HandStream | None:
+    """The joints and seen flags of `observation.state` when it is this project's (named as `STATE_NAMES`)."""
+    if (state := _named(root, info, table, fmt.STATE, fmt.STATE_NAMES)) is None:
+        return None
+    joints = state[:, :fmt.JOINT_VALUES].reshape(-1, 2, 21, 3).astype(np.float32)
+    seen = state[:, fmt.JOINT_VALUES:] > 0.5
+    return HandStream(np.where(seen[..., None, None], joints, 0.0).astype(np.float32), seen)
+
+
+def _tactile_cells(root: Path, info: dict, table: pa.Table) -> np.ndarray | None:
+    """(frames, 2, 21, 21) maps from this project's `observation.tactile` (values named by cell): NaN in cells
+    without a value and for hands `observation.tactile_valid` says were not measured."""
+    found = _exported(info, table, fmt.TACTILE)
+    if found is None:
+        return None
+    key, feature = found
+    cells = fmt.cells_of(feature.get("names"))
+    values = _array(table, key, (len(cells[0]),)) if cells is not None else None
+    if values is None:
+        raise DataError(root / fmt.INFO_PATH, f"{key} names", "not one grid cell name (left.r02c05 …) per value")
+    grids = np.full((table.num_rows, 2, 21, 21), np.nan, np.float32)
+    grids[:, cells[0], cells[1], cells[2]] = values
+    measured = _flags(table, fmt.TACTILE_VALID, 2)
+    if measured is not None:
+        grids[~measured] = np.nan
+    return grids
 
 
 def hand_order(info: dict, name: str) -> tuple[list[str], bool]:
@@ -220,20 +261,25 @@ def open_lerobot_episode(root: Path, index: int) -> Episode:
     if stamps is None:
         seconds = _array(table, "timestamp", (1,)) if "timestamp" in table.column_names else np.arange(frames) / fps
         stamps = np.round(np.asarray(seconds, np.float64) * 1e6)
-    wilor = pressure = trackers = None
-    if (found := _feature(info, table, (2, 21, 3), fmt.JOINTS)) is not None:
+    wilor, pressure, trackers = _hand_state(root, info, table), None, None
+    if wilor is None and (found := _feature(info, table, (2, 21, 3), fmt.JOINTS)) is not None:
         swap = _official_order(info, found[0], problems, root)
         joints, valid = found[1], _flags(table, fmt.JOINTS_VALID, 2)
         valid = hands_valid(joints) & np.any(joints != 0, axis=(-1, -2)) if valid is None else valid
         joints, valid = (joints[:, ::-1], valid[:, ::-1]) if swap else (joints, valid)
         wilor = HandStream(np.where(valid[..., None, None], joints, 0.0).astype(np.float32), valid.copy())
-    if (found := _feature(info, table, (2, 21, 21), fmt.TACTILE)) is not None:
-        attrs, _ = scalar_attrs(json.loads(row.get("pressure_attrs") or "{}"))
+    attrs, _ = scalar_attrs(json.loads(row.get("pressure_attrs") or "{}"))
+    if (grids := _tactile_cells(root, info, table)) is not None:
+        pressure = PressureFile(grids, attrs)
+    elif (found := _feature(info, table, (2, 21, 21), fmt.TACTILE)) is not None:
         grids = found[1][:, ::-1] if _official_order(info, found[0], problems, root) else found[1]
         pressure = PressureFile(np.ascontiguousarray(grids), attrs)
-    if (found := _feature(info, table, (3, 7), fmt.TRACKERS)) is not None:
-        valid = _flags(table, fmt.TRACKERS_VALID, 3)
-        trackers = TrackerStream(found[1], np.any(found[1] != 0, axis=-1) if valid is None else valid)
+    poses = _named(root, info, table, fmt.TRACKERS, fmt.TRACKER_NAMES)
+    if poses is None and (found := _feature(info, table, (3, 7), fmt.TRACKERS)) is not None:
+        poses = found[1]
+    if poses is not None:
+        poses, valid = poses.reshape(-1, 3, 7).astype(np.float32), _flags(table, fmt.TRACKERS_VALID, 3)
+        trackers = TrackerStream(poses, np.any(poses != 0, axis=-1) if valid is None else valid)
     tasks = row.get("tasks") or []
     return Episode(
         path=fmt.episode_address(root, index), scene=str(row.get("scene") or ""),

@@ -11,6 +11,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.episodes.episode import Episode
@@ -18,6 +20,7 @@ from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_
 from touchanything.devices.episodes.lerobot_writer import LeRobotWriter
 from touchanything.devices.errors import DataError, UserError
 from touchanything.devices.output_safety import replacing_folder
+from touchanything.devices.tactile_layout import TactileLayout
 
 
 @dataclass
@@ -47,31 +50,55 @@ def _source_key(path: Path) -> Path:
     return path.resolve().with_suffix("") if is_hdf5_path(path) else path.resolve()
 
 
-def _plan(sources: list[Path], summary: ExportSummary) -> tuple[list[Path], tuple[str, ...], dict, int]:
-    """The episodes that can go together (the views every one has, one size per view, one frame rate), the views,
-    their sizes and the frame rate; the others are listed in `summary.skipped`."""
-    shape: dict[Path, tuple[dict, float]] = {}
+def _values_outside(episode: Episode, sensor_cells: np.ndarray) -> str | None:
+    """Why the episode's pressure cannot be exported without loss (values in cells that are no sensor), else None."""
+    if episode.pressure is None:
+        return None
+    outside = np.isfinite(episode.pressure.grids[:, ~sensor_cells]).any(axis=0)
+    if not outside.any():
+        return None
+    return f"pressure in {int(outside.sum())} grid cells outside the glove layout's {int(sensor_cells.sum())}; they would be lost"
+
+
+@dataclass
+class ExportPlan:
+    """The episodes that go together, in order; the views they all have, each (width, height); the frame rate;
+    their frames in all."""
+
+    paths: list[Path]
+    views: tuple[str, ...]
+    sizes: dict[str, tuple[int, int]]
+    fps: int
+    frames: int
+
+
+def _plan(sources: list[Path], summary: ExportSummary, sensor_cells: np.ndarray) -> ExportPlan:
+    """The episodes that can go together (the views every one has, one size per view, one frame rate, pressure
+    only in `sensor_cells`); the others are listed in `summary.skipped`."""
+    shape: dict[Path, tuple[dict, float, int]] = {}
     for path in sources:
         try:
             with open_episode(path) as episode:
                 if episode.num_frames == 0 or "ego" not in episode.views:
                     summary.skipped.append(f"{path}: {'no frames' if episode.num_frames == 0 else 'no ego (chest) video'}")
-                    continue
-                shape[path] = ({v: (s.width, s.height) for v, s in episode.views.items()}, episode.fps)
+                elif (lost := _values_outside(episode, sensor_cells)) is not None:
+                    summary.skipped.append(f"{path}: {lost}")
+                else:
+                    shape[path] = ({v: (s.width, s.height) for v, s in episode.views.items()}, episode.fps, episode.num_frames)
         except DataError as exc:
             summary.skipped.append(str(exc))
     if not shape:
-        return [], (), {}, 0
-    first = next(iter(shape.values()))
-    views = tuple(v for v in first[0] if all(v in sizes for sizes, _ in shape.values()))
+        return ExportPlan([], (), {}, 0, 0)
+    first_sizes, first_fps, _ = next(iter(shape.values()))
+    views = tuple(v for v in first_sizes if all(v in sizes for sizes, _, _ in shape.values()))
     keep = []
-    for path, (sizes, fps) in shape.items():
-        if fps != first[1] or any(sizes[v] != first[0][v] for v in views):
+    for path, (sizes, fps, _) in shape.items():
+        if fps != first_fps or any(sizes[v] != first_sizes[v] for v in views):
             summary.skipped.append(f"{path}: {fps:g} fps / sizes {sizes} differ from the first episode's "
-                                   f"({first[1]:g} fps, {first[0]}); a dataset has one of each")
+                                   f"({first_fps:g} fps, {first_sizes}); a dataset has one of each")
         else:
             keep.append(path)
-    return keep, views, {v: first[0][v] for v in views}, round(first[1])
+    return ExportPlan(keep, views, {v: first_sizes[v] for v in views}, round(first_fps), sum(shape[p][2] for p in keep))
 
 
 def _extra(episode: Episode, source: str) -> dict[str, str]:
@@ -119,26 +146,43 @@ def _write_split(split: dict[str, list[Path]] | None, folder: Path, written: lis
     (folder / SPLIT_FILE).write_text(json.dumps(out, indent=1) + "\n")
 
 
-def export_lerobot(root: Path, out: Path, overwrite: bool = False,
-                   on_episode: Callable[[Path], None] = lambda path: None) -> ExportSummary:
-    """Export every episode under `root` into the LeRobot dataset `out`; `on_episode` after each source."""
+def check_action(action: str | None) -> None:
+    """A UserError unless `action` is None or a feature `--action` can name."""
+    if action is not None and action not in fmt.ACTION_CHOICES:
+        raise UserError(f"--action {action}: not an exported feature that can be the action "
+                        f"(choose one of {', '.join(fmt.ACTION_CHOICES)})")
+
+
+def export_lerobot(root: Path, out: Path, overwrite: bool = False, action: str | None = None,
+                   on_frames: Callable[[int, int], None] = lambda written, total: None) -> ExportSummary:
+    """Export every episode under `root` into the LeRobot dataset `out`, feature `action` (if any) as LeRobot's
+    `action`; `on_frames(written, total)` after each video frame (of every view) written."""
+    check_action(action)
     root, out = Path(root), Path(out)
+    sensor_cells = TactileLayout.default().valid
     sources = source_episodes(root)
     if not sources:
         raise UserError(f"{root}: no episodes found (raw folders with chest.mp4, or .hdf5 files)")
     summary = ExportSummary()
-    paths, summary.views, sizes, fps = _plan(sources, summary)
-    if not paths:
+    plan = _plan(sources, summary, sensor_cells)
+    if not plan.paths:
         raise UserError(f"{root}: none of the {len(sources)} episodes can be exported ({summary.skipped[0]})")
+    summary.views = plan.views
     split = _source_split(root)
-    paths, splits = in_split_order(paths, split)
+    paths, splits = in_split_order(plan.paths, split)
+    written, total = 0, plan.frames * len(plan.views)
+
+    def frame_written() -> None:
+        nonlocal written
+        written += 1
+        on_frames(written, total)
+
     with replacing_folder(out, overwrite) as partial:
-        writer = LeRobotWriter(partial, fps, summary.views, sizes, splits)
+        writer = LeRobotWriter(partial, plan.fps, plan.views, plan.sizes, splits, sensor_cells, action, frame_written)
         for path in paths:
             with open_episode(path) as episode:
                 writer.add(episode, task_text(episode.task), _extra(episode, source_name(root, path)))
             summary.episodes, summary.frames = summary.episodes + 1, summary.frames + episode.num_frames
-            on_episode(path)
         writer.close()
         _write_split(split, partial, paths)
     return summary

@@ -17,7 +17,11 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
+
+from touchanything.devices.hand_pose import JOINT_NAMES, JOINTS_PER_HAND
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES, VIEW_NAMES
+from touchanything.devices.tactile_layout import GRID_SIZE
 
 CODEBASE_VERSION = "v3.0"
 INFO_PATH, STATS_PATH, TASKS_PATH = Path("meta/info.json"), Path("meta/stats.json"), Path("meta/tasks.parquet")
@@ -32,30 +36,65 @@ ROBOT_TYPE = "egotouch_human"
 """`robot_type` of the export: two human hands with tactile gloves, no robot."""
 
 VIEW_FEATURES = {view: f"observation.images.{view}" for view in VIEW_NAMES}
-JOINTS, JOINTS_VALID = "observation.hand_joints", "observation.hand_joints_valid"
-TACTILE = "observation.tactile"
+STATE = "observation.state"
+TACTILE, TACTILE_VALID = "observation.tactile", "observation.tactile_valid"
 TRACKERS, TRACKERS_VALID = "observation.trackers", "observation.trackers_valid"
 CAPTURE_TIME = "observation.capture_time_us"
+ACTION = "action"
+ACTION_CHOICES = (TACTILE, STATE, TRACKERS)
+"""The features `export-lerobot --action` can write as LeRobot's `action` (moved, not copied: a policy takes every
+other `observation.*` feature as input, so the target must not also be one)."""
 INDEX_FEATURES = ("timestamp", "frame_index", "episode_index", "index", "task_index")
+JOINTS, JOINTS_VALID = "observation.hand_joints", "observation.hand_joints_valid"
+"""Exports before 2026-11-27 held the joints (2, 21, 3) and their flags here, and the maps (2, 21, 21) with NaN
+outside the glove; the reader still takes them."""
 
-FEATURE_NAMES = {
-    JOINTS: {"hand": list(HANDS)},
-    JOINTS_VALID: list(HANDS),
-    TACTILE: {"hand": list(HANDS)},
-    TRACKERS: {"tracker": list(TRACKER_ROLES)},
-    TRACKERS_VALID: list(TRACKER_ROLES),
-    CAPTURE_TIME: None,
-}
-"""The `names` of each exported feature: the hand order is stated in every hand feature (official: left, right).
-Each is None, a flat list or a map with exactly one entry — the forms Rerun's LeRobot importer accepts (a map of
-two entries makes it reject the whole dataset); what each axis holds goes into the feature's `info`."""
+POSE = ("x", "y", "z", "qw", "qx", "qy", "qz")
+JOINT_VALUES = len(HANDS) * JOINTS_PER_HAND * 3
+STATE_NAMES = [f"{hand}.{joint}.{axis}" for hand in HANDS for joint in JOINT_NAMES for axis in "xyz"] + \
+    [f"{hand}.seen" for hand in HANDS]
+"""`observation.state`, 128 values: both hands' 21 joints (x, y, z in metres, WiLoR's camera of the chest view;
+0 for a hand not seen), then whether each hand was seen (1.0 or 0.0)."""
+TRACKER_NAMES = [f"{role}.{value}" for role in TRACKER_ROLES for value in POSE]
+CELL_NAME = re.compile(r"(left|right)\.r(\d{2})c(\d{2})")
+
+
+def tactile_names(sensor_cells: np.ndarray) -> list[str]:
+    """The names of `observation.tactile`'s values: each hand's sensor cells ((2, 21, 21) bool), row by row,
+    "left.r02c05" … (the grid cells the official data holds values in; the others are no sensor)."""
+    return [f"{hand}.r{row:02d}c{col:02d}" for h, hand in enumerate(HANDS) for row, col in np.argwhere(sensor_cells[h])]
+
+
+def cells_of(names: object) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(hand, row, column) index arrays of tactile value names, None unless `names` is a list of cell names."""
+    if not isinstance(names, list) or not names:
+        return None
+    cells = []
+    for name in names:
+        match = CELL_NAME.fullmatch(name) if isinstance(name, str) else None
+        if match is None or int(match[2]) >= GRID_SIZE or int(match[3]) >= GRID_SIZE:
+            return None
+        cells.append((HANDS.index(match[1]), int(match[2]), int(match[3])))
+    hand, row, column = np.array(cells).T
+    return hand, row, column
+
+
+FEATURE_NAMES = {TACTILE_VALID: list(HANDS), TRACKERS: TRACKER_NAMES, TRACKERS_VALID: list(TRACKER_ROLES),
+                 STATE: STATE_NAMES, CAPTURE_TIME: None}
+"""The `names` of each exported feature (the tactile names depend on the glove layout: `tactile_names`). Every
+feature is 1-D and named value by value, so Rerun's LeRobot importer plots each as labelled series and LeRobot's
+statistics are per value; a name map of two entries makes Rerun reject the whole dataset."""
 FEATURE_INFO = {
-    JOINTS: {"axes": ["hand", "joint", "xyz"]},
-    TACTILE: {"axes": ["hand", "row", "column"]},
-    TRACKERS: {"axes": ["tracker", "pose"], "pose": ["x", "y", "z", "qw", "qx", "qy", "qz"]},
+    STATE: {"joints": {"shape": [len(HANDS), JOINTS_PER_HAND, 3], "axes": ["hand", "joint", "xyz"], "unit": "m",
+                       "frame": "WiLoR camera of the chest view", "values": [0, JOINT_VALUES]},
+            "seen": {"values": [JOINT_VALUES, JOINT_VALUES + len(HANDS)], "meaning": "1.0 when the hand was seen"}},
+    TACTILE: {"grid": [len(HANDS), GRID_SIZE, GRID_SIZE], "range": [0.0, 1.0],
+              "cells": "value k is the grid cell its name gives (hand.rROWcCOLUMN); cells without a sensor are not "
+                       "stored; a hand not measured in a frame (observation.tactile_valid false) holds 0"},
+    TRACKERS: {"shape": [len(TRACKER_ROLES), len(POSE)], "unit": "m", "frame": "SteamVR tracking space",
+               "rotation": "quaternion w, x, y, z"},
 }
-"""The `info` of the multi-dimensional features: their axes (LeRobot and Rerun ignore it; video features carry
-their own `info` the same way)."""
+"""The `info` of the non-video features: how their values form the project's arrays (LeRobot ignores it)."""
 
 VIEW_ALIASES = {"ego": "ego", "main": "ego", "chest": "ego", "head": "ego", "wrist_left": "wrist_left",
                 "left_wrist": "wrist_left", "wrist_right": "wrist_right", "right_wrist": "wrist_right"}

@@ -10,6 +10,7 @@ hand's map is an Array3D (2, 21, 21), a flag pair a length-2 list), as `datasets
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,18 +28,39 @@ VIDEO_CRF = 20
 VIDEO_OPTIONS = {"g": "2", "bf": "0"}
 
 
-def frame_features(episode: Episode) -> dict[str, np.ndarray]:
-    """The non-video features of every frame of `episode`, in the export's hand order [left, right]."""
+def frame_features(episode: Episode, sensor_cells: np.ndarray) -> dict[str, np.ndarray]:
+    """The non-video features of every frame of `episode` (`lerobot_format.FEATURE_INFO`): each (frames, values),
+    hands in the order [left, right], no NaN. `sensor_cells`: (2, 21, 21) bool, the grid cells exported."""
     t = episode.num_frames
     joints = np.zeros((t, 2, 21, 3), np.float32) if episode.wilor is None else episode.wilor.joints.astype(np.float32)
-    valid = np.zeros((t, 2), bool) if episode.wilor is None else episode.wilor.valid
-    tactile = np.full((t, 2, 21, 21), np.nan, np.float32) if episode.pressure is None else episode.pressure.grids
+    seen = np.zeros((t, 2), bool) if episode.wilor is None else episode.wilor.valid
+    grids = np.full((t, 2, 21, 21), np.nan, np.float32) if episode.pressure is None else episode.pressure.grids
+    cells = np.asarray(grids, np.float32)[:, sensor_cells]
+    measured = np.isfinite(cells)
+    hand_of_cell = np.argwhere(sensor_cells)[:, 0]
     poses = np.zeros((t, len(TRACKER_ROLES), 7), np.float32)
     trackers_valid = np.zeros((t, len(TRACKER_ROLES)), bool)
     if episode.trackers is not None:
         poses, trackers_valid = episode.trackers.poses.astype(np.float32), episode.trackers.valid
-    return {fmt.JOINTS: joints, fmt.JOINTS_VALID: valid, fmt.TACTILE: tactile.astype(np.float32), fmt.TRACKERS: poses,
-            fmt.TRACKERS_VALID: trackers_valid, fmt.CAPTURE_TIME: episode.timestamps_us.astype(np.int64)}
+    return {fmt.STATE: np.concatenate([joints.reshape(t, -1), seen.astype(np.float32)], axis=1),
+            fmt.TACTILE: np.where(measured, cells, 0.0).astype(np.float32),
+            fmt.TACTILE_VALID: np.stack([measured[:, hand_of_cell == h].any(axis=1) for h in range(2)], axis=1),
+            fmt.TRACKERS: poses.reshape(t, -1), fmt.TRACKERS_VALID: trackers_valid,
+            fmt.CAPTURE_TIME: episode.timestamps_us.astype(np.int64)}
+
+
+def numeric_features(sensor_cells: np.ndarray) -> dict[str, dict]:
+    """info.json's entries of the non-video features (before any is renamed `action`)."""
+    features = {}
+    for name, dtype, size in ((fmt.STATE, "float32", len(fmt.STATE_NAMES)), (fmt.TACTILE, "float32", int(sensor_cells.sum())),
+                              (fmt.TACTILE_VALID, "bool", 2), (fmt.TRACKERS, "float32", len(fmt.TRACKER_NAMES)),
+                              (fmt.TRACKERS_VALID, "bool", len(TRACKER_ROLES)), (fmt.CAPTURE_TIME, "int64", 1)):
+        names = fmt.tactile_names(sensor_cells) if name == fmt.TACTILE else fmt.FEATURE_NAMES[name]
+        features[name] = {"dtype": dtype, "shape": [size], "names": names,
+                          **({"info": fmt.FEATURE_INFO[name]} if name in fmt.FEATURE_INFO else {})}
+    for name in fmt.INDEX_FEATURES:
+        features[name] = {"dtype": "float32" if name == "timestamp" else "int64", "shape": [1], "names": None}
+    return features
 
 
 def _dtype(values: np.ndarray) -> str:
@@ -86,13 +108,18 @@ class _OpenFile:
 class LeRobotWriter:
     """Write episodes with `add`, then `close()` for the metadata. `views`: the video features, each (width,
     height) in `sizes`; every episode must have them all, at that size, at `fps`. `splits`: info.json's split
-    name → episode range "first:end"."""
+    name → episode range "first:end"; `sensor_cells`: (2, 21, 21) bool, the grid cells exported; `action`: the
+    feature written as LeRobot's `action` (one of `lerobot_format.ACTION_CHOICES`), None for none; `on_frame`:
+    called after each video frame written."""
 
     folder: Path
     fps: int
     views: tuple[str, ...]
     sizes: dict[str, tuple[int, int]]
     splits: dict[str, str]
+    sensor_cells: np.ndarray
+    action: str | None = None
+    on_frame: Callable[[], None] = lambda: None
     episodes: list[dict] = field(default_factory=list)
     tasks: dict[str, int] = field(default_factory=dict)
     _stats: list[dict[str, dict]] = field(default_factory=list)
@@ -107,7 +134,8 @@ class LeRobotWriter:
         """Append one episode (its frames, videos, metadata and statistics); `extra`: more columns of its row in
         the episodes metadata (strings)."""
         index, frames = len(self.episodes), episode.num_frames
-        columns = {**self._index_columns(index, self.tasks.setdefault(task, len(self.tasks)), frames), **frame_features(episode)}
+        columns = {**self._index_columns(index, self.tasks.setdefault(task, len(self.tasks)), frames),
+                   **{self._key(name): values for name, values in frame_features(episode, self.sensor_cells).items()}}
         stats = {name: feature_stats(values) for name, values in columns.items()}
         row = {"episode_index": index, "tasks": [task], "length": frames, "data/chunk_index": self._data.chunk,
                "data/file_index": self._data.file, "dataset_from_index": self._frames, "dataset_to_index": self._frames + frames,
@@ -122,6 +150,10 @@ class LeRobotWriter:
         self.episodes.append(row)
         self._stats.append(stats)
         self._frames += frames
+
+    def _key(self, name: str) -> str:
+        """The key feature `name` is written under."""
+        return fmt.ACTION if name == self.action else name
 
     def _index_columns(self, index: int, task_index: int, frames: int) -> dict[str, np.ndarray]:
         """LeRobot's own columns: time from the episode's start (exactly i / fps), indexes."""
@@ -161,6 +193,7 @@ class LeRobotWriter:
             if image is None:  # a frame the file no longer decodes: black, so that the times stay i / fps
                 image = blank = np.zeros((source.height, source.width, 3), np.uint8) if blank is None else blank
             writer.write(image)
+            self.on_frame()
         key = fmt.VIEW_FEATURES[view]
         columns = {f"videos/{key}/chunk_index": at.chunk, f"videos/{key}/file_index": at.file,
                    f"videos/{key}/from_timestamp": at.frames / self.fps,
@@ -201,14 +234,10 @@ class LeRobotWriter:
                 "dtype": "video", "shape": [height, width, 3], "names": ["height", "width", "channels"],
                 "info": {"video.height": height, "video.width": width, "video.codec": "h264", "video.pix_fmt": "yuv420p",
                          "video.is_depth_map": False, "video.fps": self.fps, "video.channels": 3, "has_audio": False}}
-        shapes = {fmt.JOINTS: [2, 21, 3], fmt.JOINTS_VALID: [2], fmt.TACTILE: [2, 21, 21],
-                  fmt.TRACKERS: [len(TRACKER_ROLES), 7], fmt.TRACKERS_VALID: [len(TRACKER_ROLES)], fmt.CAPTURE_TIME: [1]}
-        dtypes = {fmt.JOINTS_VALID: "bool", fmt.TRACKERS_VALID: "bool", fmt.CAPTURE_TIME: "int64"}
-        for name, shape in shapes.items():
-            features[name] = {"dtype": dtypes.get(name, "float32"), "shape": shape, "names": fmt.FEATURE_NAMES[name],
-                              **({"info": fmt.FEATURE_INFO[name]} if name in fmt.FEATURE_INFO else {})}
-        for name in fmt.INDEX_FEATURES:
-            features[name] = {"dtype": "float32" if name == "timestamp" else "int64", "shape": [1], "names": None}
+        for name, feature in numeric_features(self.sensor_cells).items():
+            if name == self.action:
+                feature = {**feature, "info": {**feature.get("info", {}), "exported_from": name}}
+            features[self._key(name)] = feature
         return {"codebase_version": fmt.CODEBASE_VERSION, "robot_type": fmt.ROBOT_TYPE,
                 "total_episodes": len(self.episodes), "total_frames": self._frames, "total_tasks": len(self.tasks),
                 "chunks_size": fmt.CHUNKS_SIZE,
