@@ -104,7 +104,8 @@ def test_rerun_s_lerobot_importer_opens_the_export(two_episodes, tmp_path):
                                                                  batch.column("Scalars:scalars").to_pylist()))
         elif "SeriesLines:names" in batch.schema.names:
             names[chunk.entity_path] = batch.column("SeriesLines:names").to_pylist()[0]
-    assert set(scalars) == {"/observation.state", "/observation.tactile", "/observation.trackers"}
+    assert set(scalars) == {"/observation.state", "/observation.tactile", "/observation.trackers", "/observation.tactile_valid",
+                            "/observation.trackers_valid"}
     # the pressure as labelled values: the right glove's cell (row 10, column 10) at frame 5 of the first episode
     cell = names["/observation.tactile"].index("right.r10c10")
     with open_episode(sorted(two_episodes.glob("*/*/*"))[0]) as raw:

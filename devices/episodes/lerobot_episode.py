@@ -215,7 +215,7 @@ def _flags(table: pa.Table, name: str, count: int) -> np.ndarray | None:
     if name not in table.column_names:
         return None
     values = _array(table, name, (count,))
-    return None if values is None else values.astype(bool)
+    return None if values is None else values.astype(bool)  # bool, or float 0 / 1
 
 
 def _views(root: Path, info: dict, row: dict, index: int, frames: int, problems: list[str]) -> dict[str, LeRobotFrames]:
@@ -257,7 +257,7 @@ def open_lerobot_episode(root: Path, index: int) -> Episode:
     row, problems = rows[index], []
     table = _data_table(root, info, row, index)
     frames, fps = table.num_rows, float(info["fps"])
-    stamps = (_array(table, fmt.CAPTURE_TIME, (1,)) if fmt.CAPTURE_TIME in table.column_names else None)
+    stamps = next((_array(table, name, (1,)) for name in (fmt.CAPTURE_TIME, fmt.OLD_CAPTURE_TIME) if name in table.column_names), None)
     if stamps is None:
         seconds = _array(table, "timestamp", (1,)) if "timestamp" in table.column_names else np.arange(frames) / fps
         stamps = np.round(np.asarray(seconds, np.float64) * 1e6)

@@ -39,15 +39,17 @@ VIEW_FEATURES = {view: f"observation.images.{view}" for view in VIEW_NAMES}
 STATE = "observation.state"
 TACTILE, TACTILE_VALID = "observation.tactile", "observation.tactile_valid"
 TRACKERS, TRACKERS_VALID = "observation.trackers", "observation.trackers_valid"
-CAPTURE_TIME = "observation.capture_time_us"
+CAPTURE_TIME = "capture_time_us"
+"""Not an `observation.*` feature: LeRobot's policies take every one of those as an input."""
 ACTION = "action"
 ACTION_CHOICES = (TACTILE, STATE, TRACKERS)
 """The features `export-lerobot --action` can write as LeRobot's `action` (moved, not copied: a policy takes every
 other `observation.*` feature as input, so the target must not also be one)."""
 INDEX_FEATURES = ("timestamp", "frame_index", "episode_index", "index", "task_index")
 JOINTS, JOINTS_VALID = "observation.hand_joints", "observation.hand_joints_valid"
-"""Exports before 2026-11-27 held the joints (2, 21, 3) and their flags here, and the maps (2, 21, 21) with NaN
-outside the glove; the reader still takes them."""
+OLD_CAPTURE_TIME = "observation.capture_time_us"
+"""Exports before 2026-11-27 held the joints (2, 21, 3) and their flags, and the capture times, here, and the maps
+(2, 21, 21) with NaN outside the glove; the reader still takes them."""
 
 POSE = ("x", "y", "z", "qw", "qx", "qy", "qz")
 JOINT_VALUES = len(HANDS) * JOINTS_PER_HAND * 3
@@ -83,7 +85,8 @@ FEATURE_NAMES = {TACTILE_VALID: list(HANDS), TRACKERS: TRACKER_NAMES, TRACKERS_V
                  STATE: STATE_NAMES, CAPTURE_TIME: None}
 """The `names` of each exported feature (the tactile names depend on the glove layout: `tactile_names`). Every
 feature is 1-D and named value by value, so Rerun's LeRobot importer plots each as labelled series and LeRobot's
-statistics are per value; a name map of two entries makes Rerun reject the whole dataset."""
+statistics are per value; a name map of two entries makes Rerun reject the whole dataset. The flags are float32
+0.0 / 1.0: LeRobot's normaliser cannot subtract a mean from a bool tensor, and Rerun does not load bool features."""
 FEATURE_INFO = {
     STATE: {"joints": {"shape": [len(HANDS), JOINTS_PER_HAND, 3], "axes": ["hand", "joint", "xyz"], "unit": "m",
                        "frame": "WiLoR camera of the chest view", "values": [0, JOINT_VALUES]},

@@ -44,8 +44,8 @@ def frame_features(episode: Episode, sensor_cells: np.ndarray) -> dict[str, np.n
         poses, trackers_valid = episode.trackers.poses.astype(np.float32), episode.trackers.valid
     return {fmt.STATE: np.concatenate([joints.reshape(t, -1), seen.astype(np.float32)], axis=1),
             fmt.TACTILE: np.where(measured, cells, 0.0).astype(np.float32),
-            fmt.TACTILE_VALID: np.stack([measured[:, hand_of_cell == h].any(axis=1) for h in range(2)], axis=1),
-            fmt.TRACKERS: poses.reshape(t, -1), fmt.TRACKERS_VALID: trackers_valid,
+            fmt.TACTILE_VALID: np.stack([measured[:, hand_of_cell == h].any(axis=1) for h in range(2)], axis=1).astype(np.float32),
+            fmt.TRACKERS: poses.reshape(t, -1), fmt.TRACKERS_VALID: trackers_valid.astype(np.float32),
             fmt.CAPTURE_TIME: episode.timestamps_us.astype(np.int64)}
 
 
@@ -53,8 +53,8 @@ def numeric_features(sensor_cells: np.ndarray) -> dict[str, dict]:
     """info.json's entries of the non-video features (before any is renamed `action`)."""
     features = {}
     for name, dtype, size in ((fmt.STATE, "float32", len(fmt.STATE_NAMES)), (fmt.TACTILE, "float32", int(sensor_cells.sum())),
-                              (fmt.TACTILE_VALID, "bool", 2), (fmt.TRACKERS, "float32", len(fmt.TRACKER_NAMES)),
-                              (fmt.TRACKERS_VALID, "bool", len(TRACKER_ROLES)), (fmt.CAPTURE_TIME, "int64", 1)):
+                              (fmt.TACTILE_VALID, "float32", 2), (fmt.TRACKERS, "float32", len(fmt.TRACKER_NAMES)),
+                              (fmt.TRACKERS_VALID, "float32", len(TRACKER_ROLES)), (fmt.CAPTURE_TIME, "int64", 1)):
         names = fmt.tactile_names(sensor_cells) if name == fmt.TACTILE else fmt.FEATURE_NAMES[name]
         features[name] = {"dtype": dtype, "shape": [size], "names": names,
                           **({"info": fmt.FEATURE_INFO[name]} if name in fmt.FEATURE_INFO else {})}

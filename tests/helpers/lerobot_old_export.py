@@ -1,6 +1,7 @@
 """An export as `export-lerobot` wrote it before 2026-11-27: the joints (2, 21, 3) and the maps (2, 21, 21) with NaN
 outside the glove as multi-dimensional features, their hand order in `names` maps of two entries, the trackers
-(3, 7); made from a current export of the same raw episodes (its videos and episodes metadata kept)."""
+(3, 7), bool flags, `observation.capture_time_us`; made from a current export of the same raw episodes (its
+videos and episodes metadata kept)."""
 from __future__ import annotations
 
 import json
@@ -35,12 +36,12 @@ def make_old_export(export: Path, raw_episodes: list[Path]) -> None:
             columns["observation.trackers_valid"].append(episode.trackers.valid)
     data_path = export / "data" / "chunk-000" / "file-000.parquet"
     table = pq.read_table(data_path)
-    keep = ["timestamp", "frame_index", "episode_index", "index", "task_index", "observation.capture_time_us"]
-    table = pa.table({**{name: table[name] for name in keep},
+    keep = ["timestamp", "frame_index", "episode_index", "index", "task_index"]
+    table = pa.table({**{name: table[name] for name in keep}, "observation.capture_time_us": table["capture_time_us"],
                       **{name: _column(np.concatenate(values)) for name, values in columns.items()}})
     pq.write_table(table, data_path)
     info_path = export / "meta" / "info.json"
     info = json.loads(info_path.read_text())
     info["features"] = {k: v for k, v in info["features"].items() if k in keep or k.startswith("observation.images")}
-    info["features"].update(OLD_FEATURES)
+    info["features"].update(OLD_FEATURES, **{"observation.capture_time_us": {"dtype": "int64", "shape": [1], "names": None}})
     info_path.write_text(json.dumps(info))
