@@ -27,9 +27,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def partial_path(rrd: Path) -> Path:
-    from touchanything.viz.rerun_recording import partial_path as written_under
+    """Where the recording of this process is written until it is renamed into `rrd`."""
+    from touchanything.devices.output_safety import temporary_path
 
-    return written_under(rrd)
+    return temporary_path(rrd)
 
 
 def resident_mb() -> float:

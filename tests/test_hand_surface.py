@@ -10,7 +10,7 @@ from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.viz.comparison_video import comparison_frame
 from touchanything.viz.hand3d_panel import HAND3D_HEIGHT, TITLE_HEIGHT, UNPAINTED, draw_hand, hand3d_panel
-from touchanything.viz.hand_surface import hand_topology, hand_vertices, palm_frame, vertex_values
+from touchanything.viz.hand_surface import hand_topology, hand_vertices, palm_frame, vertex_normals, vertex_values
 from touchanything.viz.pressure_panel import BACKGROUND
 
 SAMPLE = Path(__file__).resolve().parents[1] / "recordings" / "sample" / "Home" / "slide_box_cardboard" / "sim0007_00000"
@@ -92,6 +92,21 @@ def test_degenerate_joints_give_a_finite_surface_or_none():
     bad[3, 1] = np.nan
     assert hand_vertices(bad, 0) is None and hand_vertices(np.full((21, 3), np.inf), 1) is None
     assert np.isnan(vertex_values(None, hand_topology(0))).all()
+
+
+def test_vertex_normals_are_area_weighted_unit_and_finite_on_degenerate_surfaces(sample_hands):
+    corner = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])  # a tetrahedron wound outwards
+    triangles = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    normals = vertex_normals(corner, triangles)
+    assert np.allclose(normals[0], -np.ones(3) / np.sqrt(3))  # three equal faces meet at the origin
+    # the apex: faces −y and −x (area 1/2 each) and (1, 1, 1)/√3 (area √3/2) sum to +z only when weighted by area
+    assert np.allclose(normals[3], [0.0, 0.0, 1.0])
+    flat = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [5, 5, 5], [1e300, 0, 0], [0, 1e300, 0]])  # collinear, unused, overflowing
+    normals = vertex_normals(flat, np.array([[0, 1, 2], [0, 4, 5]]))
+    assert np.isfinite(normals).all() and np.allclose(np.linalg.norm(normals, axis=1), 1.0)
+    for joints in (np.zeros((21, 3)), sample_hands[0, 1]):
+        normals = vertex_normals(hand_vertices(joints, 1), hand_topology(1).triangles)
+        assert normals.dtype == np.float32 and np.isfinite(normals).all() and np.allclose(np.linalg.norm(normals, axis=1), 1.0)
 
 
 def test_the_panel_paints_measured_and_predicted_pressure(sample_hands):

@@ -1,5 +1,6 @@
 """Rerun recordings (`--rerun FILE.rrd`, `--rerun-serve`): written by replay, live and eval, read back with the
-SDK's own reader — entities, frame counts and values — and the output checks before any work."""
+SDK's own reader — entities, frame counts and values (the maps as numbers, the hand surfaces' normals and
+paints, the joints' names, the blueprint's paint per view) — and the output checks before any work."""
 from __future__ import annotations
 
 import json
@@ -26,12 +27,24 @@ from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
 from touchanything.viz.colormap import PRESSURE_LUT, apply
 from touchanything.viz.contact import hand_contact
+from touchanything.viz.hand_surface import hand_topology
+from touchanything.viz.pressure_panel import BACKGROUND
 from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
 
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
-PER_FRAME = ("/world/hands", "/world/measured/left", "/world/predicted/left", "/pressure/measured", "/pressure/predicted",
-             "/pressure/difference", "/contact/measured", "/contact/predicted", "/metrics/rolling", "/metrics/cumulative",
-             "/engine", "/trackers/chest", "/cameras/ego/hands")
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ROOT / "scenes"
+SAMPLE = ROOT / "recordings" / "sample" / "Workbench" / "hold_and_press_button_box_yellow" / "sim0007_00001"
+PER_FRAME = ("/world/hands", "/world/surface/left", "/world/surface/right", "/pressure/measured", "/pressure/predicted",
+             "/pressure/measured/left", "/pressure/predicted/right", "/pressure/difference", "/contact/measured",
+             "/contact/predicted", "/metrics/rolling", "/metrics/cumulative", "/engine", "/trackers/chest", "/cameras/ego/hands")
+JOINT_LABELS = ["wrist", "thumb_1", "thumb_2", "thumb_3", "thumb_4", "index_1", "index_2", "index_3", "index_4", "middle_1",
+                "middle_2", "middle_3", "middle_4", "ring_1", "ring_2", "ring_3", "ring_4", "pinky_1", "pinky_2", "pinky_3", "pinky_4"]
+"""The official joint order, written out (not derived from the code under test)."""
+
+
+def _values(rows, frame: int) -> np.ndarray:
+    """The (21, 21) map a value image holds at `frame` (its buffer, float16)."""
+    return np.frombuffer(bytes(rows.at("DepthImage:buffer", frame)[0]), np.float16).reshape(21, 21)
 
 
 def _no_display(monkeypatch) -> None:
@@ -52,9 +65,12 @@ def test_replay_writes_a_recording_the_sdk_reads_back(episode_dir, tmp_path, cap
         assert "AssetVideo:blob" in static[entity]
         assert rows[entity].data_frames("VideoFrameReference:timestamp") == list(range(40))
     assert rows["/pressure/measured"].data_frames("EncodedImage:blob") == list(range(40))
-    right = rows["/world/measured/right"]
+    assert rows["/pressure/predicted/left"].data_frames("DepthImage:buffer") == list(range(40))
+    right = rows["/world/surface/right"]
     assert right.data_frames("Mesh3D:vertex_positions") == [f for f in range(40) if f % 7 != 3]  # conftest: invalid every 7th
-    assert "Mesh3D:triangle_indices" in static["/world/measured/right"]
+    assert sorted(set(right.data_frames("PredictedPressure:vertex_colors"))) == [f for f in range(40) if f % 7 != 3]
+    assert right.at("PredictedPressure:albedo_factor", 4) == [0xFFFFFFFF]  # shown: the prediction outranks the placeholder
+    assert "Mesh3D:triangle_indices" in static["/world/surface/right"]
     with open_episode(episode_dir) as episode:
         truth = ground_truth_for_metrics(episode.pressure.grids, False)
         stamps = episode.timestamps_us
@@ -65,7 +81,12 @@ def test_replay_writes_a_recording_the_sdk_reads_back(episode_dir, tmp_path, cap
     assert rgba.shape == (21, 43, 4)
     cells = np.isfinite(truth[12, 1])
     assert (rgba[:, 22:, :3][cells] == apply(truth[12, 1][cells], PRESSURE_LUT, 0.0, 1.0, (0, 0, 0))).all()
-    assert (rgba[:, 22:, 3][~cells] == 0).all() and (rgba[:, 21, 3] == 0).all()
+    assert (rgba[:, 22:, :3][~cells] == BACKGROUND).all() and (rgba[:, 22:, 3] == 255).all() and (rgba[:, 21, 3] == 0).all()
+    values = _values(rows["/pressure/measured/right"], 12)  # the numbers beneath the colours
+    assert (np.isnan(values) == ~cells).all()
+    r, c = np.unravel_index(np.nanargmax(truth[12, 1]), (21, 21))
+    assert truth[12, 1, r, c] > 0.05 and values[r, c] == np.float16(truth[12, 1, r, c])
+    assert np.allclose(values[cells], truth[12, 1][cells], atol=5e-4)
     cumulative = rows["/metrics/cumulative"].at("Scalars:scalars", 39)
     assert f"volumetric_iou {cumulative[2]:.3f}" in printed
     latency, step = rows["/engine"].at("Scalars:scalars", 5)
@@ -83,7 +104,110 @@ def test_the_comparison_video_and_the_recording_come_together_with_the_3d_hands(
     with VideoReader(video) as reader:
         assert reader.num_frames == 40 and reader.height == 806 + 300
     rows, _ = recording_rows(out)
-    assert rows["/world/predicted/left"].data_frames("Mesh3D:vertex_colors") == list(range(40))
+    assert sorted(set(rows["/world/surface/left"].data_frames("PredictedPressure:vertex_colors"))) == list(range(40))
+
+
+def _two_frames(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A recording of the bundled sample's frame 109 (a press) at frames 0–2: frame 0 with both maps, frame 1
+    measured only, frame 2 without the right hand's pose and without maps. Returns (joints (42, 3), valid (2,),
+    measured, predicted (2, 21, 21))."""
+    with open_episode(SAMPLE) as episode:
+        joints, valid = episode.wilor.joints[109].reshape(42, 3), episode.wilor.valid[109]
+    assert valid.all()
+    measured = np.full((2, 21, 21), np.nan, np.float32)
+    measured[:, 2:18, 1:20] = 0.0
+    measured[1, 5, 7], measured[0, 14, 3] = 0.625, 1.0
+    predicted = measured.copy()
+    predicted[1, 5, 7] = 0.3125
+    recording = RerunRecording(RerunTarget(path), "two frames", {})
+    recording.log_observation(0, 0.0, {}, joints, valid, measured, None, {})
+    recording.log_prediction(0, 0.0, predicted, None, joints, valid, measured, None, None, None, None)
+    recording.log_observation(1, 0.033, {}, joints, valid, measured, None, {})
+    recording.log_prediction(1, 0.033, None, None, joints, valid, measured, None, None, None, None)
+    recording.log_observation(2, 0.067, {}, joints, np.array([True, False]), None, None, {})
+    recording.close()
+    return joints, valid, measured, predicted
+
+
+def test_the_maps_are_logged_as_values_a_hovered_cell_reads(tmp_path):
+    _, _, measured, predicted = _two_frames(tmp_path / "v.rrd")
+    rows, static = recording_rows(tmp_path / "v.rrd")
+    right = _values(rows["/pressure/predicted/right"], 0)
+    assert right[5, 7] == 0.3125 and right[2, 1] == 0.0 and np.isnan(right[0, 0])  # a cell outside the layout: NaN
+    assert _values(rows["/pressure/measured/right"], 1)[5, 7] == 0.625 and _values(rows["/pressure/measured/left"], 0)[14, 3] == 1.0
+    assert rows["/pressure/predicted/right"].data_frames("DepthImage:buffer") == [0]  # no prediction at frame 1: cleared
+    assert rows["/pressure/measured/left"].data_frames("DepthImage:buffer") == [0, 1]
+    for kind in ("measured", "predicted"):
+        for hand in ("left", "right"):
+            described = {name: values[0] for name, values in static_values(tmp_path / "v.rrd", f"/pressure/{kind}/{hand}").items()}
+            assert described["DepthImage:format"][0] == {"width": 21, "height": 21, "pixel_format": None, "color_model": None,
+                                                         "channel_datatype": 33}  # F16
+            assert described["DepthImage:meter"] == [1.0] and described["DepthImage:depth_range"] == [[0.0, 1.0]]
+            assert described["DepthImage:draw_order"][0] < static_values(tmp_path / "v.rrd", f"/pressure/{kind}")[
+                "EncodedImage:draw_order"][0][0]  # beneath the coloured map
+        assert static_values(tmp_path / "v.rrd", f"/pressure/{kind}/right")["Transform3D:translation"][0] == [[22.0, 0.0, 0.0]]
+    assert "DepthImage:colormap" in static["/pressure/measured/left"]
+
+
+def static_values(path: Path, entity: str) -> dict[str, list]:
+    """{component: its static values} of `entity` in the recording at `path`."""
+    out: dict[str, list] = {}
+    for chunk in RrdReader(path).stream():
+        if chunk.is_static and chunk.entity_path == entity:
+            batch = chunk.to_record_batch()
+            out |= {name: batch.column(name).to_pylist() for name in batch.schema.names if ":" in name}
+    return out
+
+
+def test_the_hand_surfaces_carry_unit_normals_and_one_paint_per_view(tmp_path):
+    _, _, measured, predicted = _two_frames(tmp_path / "s.rrd")
+    rows, static = recording_rows(tmp_path / "s.rrd")
+    for h, hand in enumerate(("left", "right")):
+        surface = rows[f"/world/surface/{hand}"]
+        positions = np.array(surface.at("Mesh3D:vertex_positions", 0), np.float64)
+        normals = np.array(surface.at("Mesh3D:vertex_normals", 0), np.float64)
+        assert normals.shape == positions.shape == (hand_topology(h).num_vertices, 3) and np.isfinite(normals).all()
+        assert np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=0.01)
+        corners = positions[hand_topology(h).triangles]  # every face, from the logged positions, faces its corners' normals
+        faces = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        facing = np.einsum("fk,fk->f", faces, normals[hand_topology(h).triangles].sum(axis=1))
+        assert (facing[np.linalg.norm(faces, axis=1) > 1e-9] > 0).mean() > 0.97
+        assert np.ptp(normals, axis=0).min() > 1.0  # they point every way: not one constant
+        assert "Mesh3D:triangle_indices" in static[f"/world/surface/{hand}"]
+    right = rows["/world/surface/right"]
+    shows = [v for v, cell in enumerate(hand_topology(1).cells) if cell == 5 * 21 + 7]
+    assert shows
+    for kind, value in (("Measured", 0.625), ("Predicted", 0.3125)):
+        colours = np.array(right.at(f"{kind}Pressure:vertex_colors", 0), np.uint32)
+        expected = apply(np.array([value]), PRESSURE_LUT, 0.0, 1.0, (0, 0, 0))[0].astype(np.uint32)
+        assert (colours[shows] == (expected[0] << 24 | expected[1] << 16 | expected[2] << 8 | 255)).all()
+        assert right.at(f"{kind}Pressure:albedo_factor", 0) == [0xFFFFFFFF]
+    assert right.at("MeasuredPressure:albedo_factor", 1) == [0xFFFFFFFF]
+    assert right.at("PredictedPressure:albedo_factor", 1) == [0xFFFFFF00]  # no prediction at frame 1: hidden in its view
+    assert right.data_frames("Mesh3D:vertex_positions") == [0, 1]  # no pose at frame 2: cleared
+    assert rows["/world/surface/left"].at("MeasuredPressure:albedo_factor", 2) == [0xFFFFFF00]  # no map at frame 2
+    maps = {}  # the default blueprint: each 3D view paints both surfaces with one kind's colours
+    reader = RrdReader(tmp_path / "s.rrd")
+    for chunk in reader.stream(store=reader.blueprints()[0]):
+        batch = chunk.to_record_batch()
+        if "VisualizerInstruction:component_map" in batch.schema.names:
+            view, hand = chunk.entity_path.split("/")[2], chunk.entity_path.split("/overrides/world/surface/")[1].split("/")[0]
+            for mapping in batch.column("VisualizerInstruction:component_map").to_pylist()[0]:
+                maps.setdefault(view, set()).add((hand, mapping["target"], mapping["source_component"]))
+    fields = ("albedo_factor", "vertex_colors")
+    assert sorted(map(sorted, maps.values())) == [
+        sorted((hand, f"Mesh3D:{field}", f"{kind}Pressure:{field}") for hand in ("left", "right") for field in fields)
+        for kind in ("Measured", "Predicted")]
+
+
+def test_the_joints_are_named_in_the_official_order(tmp_path):
+    _two_frames(tmp_path / "j.rrd")
+    context = static_values(tmp_path / "j.rrd", "/")["AnnotationContext:context"][0][0]
+    assert [entry["class_description"]["info"]["label"] for entry in context] == ["left hand", "right hand"]
+    for entry in context:
+        keypoints = entry["class_description"]["keypoint_annotations"]
+        assert [k["label"] for k in keypoints] == JOINT_LABELS and [k["id"] for k in keypoints] == list(range(21))
+    assert static_values(tmp_path / "j.rrd", "/world/hands")["Points3D:show_labels"] == [[False]]  # on hover only
 
 
 def test_the_output_is_checked_before_any_work(episode_dir, tmp_path, capsys):
@@ -137,7 +261,7 @@ def test_live_headless_records_the_simulated_rig(tmp_path, capsys):
     assert cameras == sorted(set(cameras)) and len(cameras) <= snapshots + 3  # + what 0.1 s of 30 fps adds
     jpeg = np.frombuffer(bytes(rows["/cameras/ego"].at("EncodedImage:blob", cameras[-1])[0]), np.uint8)
     assert cv2.imdecode(jpeg, cv2.IMREAD_COLOR).shape == (240, 320, 3)  # the live rig's frames at half size
-    assert len(rows["/world/predicted/left"].data_frames("Mesh3D:vertex_positions")) > 0
+    assert len(rows["/world/surface/left"].data_frames("Mesh3D:vertex_positions")) > 0
     trackers = rows["/trackers/chest"].data_frames("Transform3D:translation")
     assert trackers and trackers == sorted(set(trackers)) and max(trackers) <= max(cameras) + 30
     assert set(rows["/contact/measured"].at("Scalars:scalars", cameras[-1])) <= {0.0, 1.0}

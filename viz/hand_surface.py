@@ -238,6 +238,19 @@ def hand_vertices(joints: np.ndarray, side: int) -> np.ndarray | None:
     return np.concatenate(parts).astype(np.float32)
 
 
+def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(V, 3) float32 unit normals of a mesh's (V, 3) vertices with (F, 3) triangles wound outwards: per vertex
+    the sum of its triangles' edge cross products (each twice its triangle's area along its normal, so larger
+    triangles weigh more), normalised. Degenerate triangles add nothing; a vertex with no other (or whose sum
+    is zero or not finite) gets (0, 0, −1), towards WiLoR's camera — every normal is finite and unit length."""
+    corners = np.asarray(vertices, np.float64)[triangles]
+    corner_of = np.asarray(triangles).reshape(-1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        faces = cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        sums = np.stack([np.bincount(corner_of, np.repeat(faces[:, k], 3), minlength=len(vertices)) for k in range(3)], axis=1)
+        return _unit(sums, np.array([0.0, 0.0, -1.0])).astype(np.float32)
+
+
 def vertex_values(grid: np.ndarray | None, topology: HandTopology) -> np.ndarray:
     """(V,) float32: each vertex's cell of one hand's (21, 21) grid; NaN where the vertex has no cell, the cell
     is outside the layout (NaN), or there is no grid."""

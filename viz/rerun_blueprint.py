@@ -1,12 +1,14 @@
 """The default Rerun layout of a recording (`viz.rerun_recording`), arranged like the dashboard: the three
-cameras on top; the measured, predicted and difference maps beside the pressure painted on the 3D hands
-(measured | predicted) in the middle; the official metrics, the latency, the contact flags and the trackers at
-the bottom. The time panel follows the `frame` timeline."""
+cameras on top; the measured, predicted and difference maps (the first two with their values beneath: hover a
+cell) beside the pressure painted on the 3D hands (measured | predicted: the same surfaces, each view with its
+own paint, `viz.rerun_hands.paint_overrides`) in the middle; the official metrics, the latency, the contact
+flags and the trackers at the bottom. The time panel follows the `frame` timeline."""
 from __future__ import annotations
 
 import rerun.blueprint as rrb
 
 from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.viz.rerun_hands import paint_overrides
 
 SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
 """The official metrics logged per frame (rolling over 3 s and cumulative)."""
@@ -14,7 +16,8 @@ VIEW_LABELS = {"ego": "Head camera", "wrist_left": "Left wrist camera", "wrist_r
 
 
 def _hands(kind: str, title: str) -> rrb.Spatial3DView:
-    return rrb.Spatial3DView(origin="world", contents=["+ world/hands/**", f"+ world/{kind}/**"], name=title)
+    return rrb.Spatial3DView(origin="world", contents=["+ world/hands/**", "+ world/surface/**"], name=title,
+                             overrides=paint_overrides(kind))
 
 
 def default_blueprint() -> rrb.Blueprint:

@@ -7,12 +7,16 @@ Every row is on two timelines: `frame` (the episode's frame index, or the live r
   frame (`log_videos`), else a JPEG per frame (`log_observation`); `cameras/ego/hands`: both skeletons projected
   into the head camera.
 - `world/hands`: both hands' 3D joints with their bones, class 0 the left hand and 1 the right, keypoints in the
-  official joint order (WiLoR's head-camera frame: metres, x right, y down, z forward); `world/measured/{left,right}`,
-  `world/predicted/{left,right}`: the hand surface (`viz.hand_surface`), each vertex coloured by its tactile cell
-  on the fixed 0–1 pressure scale (its triangles are static: only positions and colours change per frame).
+  official joint order and named (`wrist`, `thumb_1` … `pinky_4`: shown on hover) (WiLoR's head-camera frame:
+  metres, x right, y down, z forward); `world/surface/{left,right}`: the hand surface with vertex normals, painted
+  with the measured and with the predicted map (`viz.rerun_hands`).
 - `pressure/{measured,predicted}`: both 21×21 maps side by side (left | right, one transparent column between)
-  as an RGBA PNG on the official colour scale (blue 0 → red 1, as in the dashboard), cells outside the layout
-  transparent; `pressure/difference`: predicted − measured on [−1, 1] (blue: too low, red: too high).
+  as an RGBA PNG on the official colour scale (blue 0 → red 1, as in the dashboard), cells outside the layout in
+  the dashboard's background colour; beneath it, the values themselves, `pressure/{measured,predicted}/{left,right}`:
+  one (21, 21) float16 depth image per hand (meter 1, fixed range 0–1, Turbo; NaN outside the layout), so that
+  hovering a cell shows its pressure ("Val") and its grid position (x: column, y: row; the right hand's image
+  placed 22 cells to the right). `pressure/difference`: predicted − measured on [−1, 1] (blue: too low, red: too
+  high), as a PNG.
 - `contact/{measured,predicted}`: the official contact rule per hand, [left, right], 0 or 1.
 - `metrics/{rolling,cumulative}`: the official metrics `SHOWN_METRICS` over the last 3 s and over everything so far.
 - `engine`: [capture-to-prediction latency, the engine's time for the step] in ms.
@@ -37,16 +41,19 @@ from touchanything.devices.hand_pose import project_wilor
 from touchanything.devices.output_safety import temporary_path
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
-from touchanything.viz.hand3d_panel import vertex_colours
-from touchanything.viz.hand_regions import BONES
-from touchanything.viz.hand_surface import hand_topology, hand_vertices
+from touchanything.viz.pressure_panel import BACKGROUND
 from touchanything.viz.rerun_blueprint import SHOWN_METRICS, default_blueprint
 from touchanything.viz.rerun_columns import ColumnBuffer
+from touchanything.viz.rerun_hands import HandSurfaces, hand_classes
 
 APPLICATION = "touchanything"
 JPEG_QUALITY = 75
-HAND_COLOURS = ((90, 200, 255), (255, 170, 90))
-"""Skeleton colour per hand (left, right), as in the dashboard."""
+VALUE_GAP = 22
+"""Columns from the left hand's value image to the right hand's (its 21 and the gap column of the PNG)."""
+VALUE_DTYPE = np.float16
+"""The value images' type: 11 significant bits (a value in [0.5, 1] within 0.00025), half the bytes of float32."""
+MAP_DRAW_ORDER, VALUE_DRAW_ORDER = -10.0, -20.0
+"""The coloured map is drawn over the value images (Rerun's defaults for images and depth images)."""
 FLUSH_SECONDS, FLUSH_BYTES = 0.5, 8 << 20
 """Rows are batched into chunks for half a second (or 8 MiB): one chunk per frame and entity would cost more
 in chunk headers than the data, and the file's footer keeps an entry per chunk in memory while recording."""
@@ -66,12 +73,13 @@ class RerunTarget:
 
 def map_image(grids: np.ndarray, lut: np.ndarray, low: float) -> np.ndarray:
     """Both hands' (2, 21, 21) maps on the fixed scale [low, 1] of `lut`, side by side with a column between,
-    as a (21, 43, 4) RGBA image; cells outside the layout (NaN) and the gap are transparent."""
+    as a (21, 43, 4) RGBA image; cells outside the layout (NaN) are the dashboard's background (opaque: they
+    cover the value images beneath), the gap between the hands is transparent."""
     values = np.full((21, 43), np.nan, np.float32)
-    values[:, :21], values[:, 22:] = grids[0], grids[1]
-    rgba = np.zeros((21, 43, 4), np.uint8)
-    rgba[..., :3] = apply(values, lut, low, 1.0, (0, 0, 0))
-    rgba[..., 3] = np.where(np.isfinite(values), 255, 0)
+    values[:, :21], values[:, VALUE_GAP:] = grids[0], grids[1]
+    rgba = np.full((21, 43, 4), 255, np.uint8)
+    rgba[..., :3] = apply(values, lut, low, 1.0, BACKGROUND)
+    rgba[:, 21:VALUE_GAP, 3] = 0
     return rgba
 
 
@@ -103,21 +111,17 @@ class RerunRecording:
         self._rows = ColumnBuffer(self._stream)
         self._videos: set[str] = set()
         self._image_size: dict[str, tuple[int, int]] = {}
-        self._surface: tuple[int, list[np.ndarray | None]] | None = None
+        self._surfaces = HandSurfaces(self._rows)
         self._log_static()
 
     def _log_static(self) -> None:
         log = self._stream.log
-        classes = [rr.ClassDescription(info=rr.AnnotationInfo(id=h, label=f"{hand} hand", color=HAND_COLOURS[h]),
-                                       keypoint_connections=BONES) for h, hand in enumerate(HANDS)]
-        log("/", rr.AnnotationContext(classes), static=True)
+        log("/", hand_classes(), static=True)
         log("world", rr.ViewCoordinates.RDF, static=True)
         log("trackers", rr.ViewCoordinates.RUB, static=True)
         for role in TRACKER_ROLES:
             log(f"trackers/{role}", rr.TransformAxes3D(0.1), static=True)
-        for h, hand in enumerate(HANDS):
-            for kind in ("measured", "predicted"):
-                log(f"world/{kind}/{hand}", rr.Mesh3D.from_fields(triangle_indices=hand_topology(h).triangles), static=True)
+        HandSurfaces.log_static(self._stream)
         for kind, colours in (("measured", ((90, 200, 255), (60, 120, 255))), ("predicted", ((255, 170, 90), (255, 90, 60)))):
             log(f"contact/{kind}", rr.SeriesLines(colors=colours, names=[f"{hand} {kind}" for hand in HANDS]), static=True)
         log("metrics/rolling", rr.SeriesLines(names=[f"{name} (3 s)" for name in SHOWN_METRICS]), static=True)
@@ -127,7 +131,16 @@ class RerunRecording:
         log("world/hands", rr.Points3D.from_fields(radii=0.004, show_labels=False), static=True)
         log("cameras/ego/hands", rr.Points2D.from_fields(radii=2.5, show_labels=False), static=True)
         for kind in ("measured", "predicted", "difference"):
-            log(f"pressure/{kind}", rr.EncodedImage.from_fields(media_type="image/png", magnification_filter="nearest"), static=True)
+            log(f"pressure/{kind}", rr.EncodedImage.from_fields(media_type="image/png", magnification_filter="nearest",
+                                                                opacity=1.0, draw_order=MAP_DRAW_ORDER), static=True)
+        value_type = rr.encodings.ChannelDatatype.from_np_dtype(np.dtype(VALUE_DTYPE))
+        value_format = rr.components.ImageFormat(width=21, height=21, channel_datatype=value_type)
+        for kind in ("measured", "predicted"):
+            for hand in HANDS:
+                log(f"pressure/{kind}/{hand}", rr.DepthImage.from_fields(
+                    format=value_format, meter=1.0, depth_range=(0.0, 1.0), colormap="turbo", magnification_filter="nearest",
+                    draw_order=VALUE_DRAW_ORDER), static=True)
+            log(f"pressure/{kind}/right", rr.Transform3D(translation=(VALUE_GAP, 0.0, 0.0)), static=True)
 
     def log_videos(self, videos: Mapping[str, Path], frames: int, times_s: np.ndarray,
                    sizes: Mapping[str, tuple[int, int]]) -> set[str]:
@@ -163,7 +176,8 @@ class RerunRecording:
                 self._log_image(view, image, at)
         self._log_skeletons(joints, valid, at)
         self._log_map("measured", measured, PRESSURE_LUT, 0.0, at)
-        self._log_surface("measured", joints, valid, measured, at)
+        self._log_values("measured", measured, at)
+        self._surfaces.paint("measured", at, joints, valid, measured)
         self._log_contact("measured", measured_contact, at)
         for role in TRACKER_ROLES:
             pose = trackers.get(role)
@@ -182,7 +196,8 @@ class RerunRecording:
         (None: not known)."""
         at = (frame, time_s)
         self._log_map("predicted", predicted, PRESSURE_LUT, 0.0, at)
-        self._log_surface("predicted", joints, valid, predicted, at)
+        self._log_values("predicted", predicted, at)
+        self._surfaces.paint("predicted", at, joints, valid, predicted)
         self._log_contact("predicted", predicted_contact, at)
         difference = None if predicted is None or measured is None else predicted - measured
         self._log_map("difference", difference, ERROR_LUT, -1.0, at)
@@ -229,22 +244,13 @@ class RerunRecording:
             if ok:
                 self._rows.put(f"pressure/{kind}", rr.EncodedImage, *at, blob=[png.tobytes()])
 
-    def _vertices(self, frame: int, joints: np.ndarray, valid: np.ndarray) -> list[np.ndarray | None]:
-        """Both hands' surface vertices at `frame` (computed once for the measured and the predicted mesh)."""
-        if self._surface is None or self._surface[0] != frame:
-            hands = np.asarray(joints, np.float64).reshape(2, 21, 3)
-            self._surface = (frame, [hand_vertices(hands[h], h) if valid[h] else None for h in range(2)])
-        return self._surface[1]
-
-    def _log_surface(self, kind: str, joints: np.ndarray, valid: np.ndarray, grids: np.ndarray | None,
-                     at: tuple[int, float]) -> None:
-        vertices = self._vertices(at[0], joints, valid)
+    def _log_values(self, kind: str, grids: np.ndarray | None, at: tuple[int, float]) -> None:
+        """Each hand's (21, 21) map as the VALUE_DTYPE buffer of its value image (None: cleared)."""
         for h, hand in enumerate(HANDS):
-            if vertices[h] is None or grids is None:
-                self._rows.clear(f"world/{kind}/{hand}", *at)
+            if grids is None:
+                self._rows.clear(f"pressure/{kind}/{hand}", *at)
             else:
-                self._rows.put(f"world/{kind}/{hand}", rr.Mesh3D, *at, vertex_positions=vertices[h],
-                               vertex_colors=vertex_colours(grids[h], h))
+                self._rows.put(f"pressure/{kind}/{hand}", rr.DepthImage, *at, buffer=[np.asarray(grids[h], VALUE_DTYPE).tobytes()])
 
     def _log_contact(self, kind: str, contact: np.ndarray | None, at: tuple[int, float]) -> None:
         if contact is not None:

@@ -1,5 +1,6 @@
 """Reading a .rrd file back with the Rerun SDK's own reader (`rerun.chunk.RrdReader`): per entity, the rows on
-the `frame` timeline and their component values."""
+the `frame` timeline and their component values, in the viewer's order (by frame, then by row id: of two rows
+at one frame the later logged is the one shown)."""
 from __future__ import annotations
 
 from collections import defaultdict
@@ -15,6 +16,7 @@ class EntityRows:
     component, e.g. a clear)."""
 
     frames: list[int] = field(default_factory=list)
+    row_ids: list[bytes] = field(default_factory=list)
     values: dict[str, list] = field(default_factory=lambda: defaultdict(list))
 
     def data_frames(self, component: str) -> list[int]:
@@ -45,12 +47,14 @@ def recording_rows(path: Path, store=None) -> tuple[dict[str, EntityRows], dict[
         frames = batch.column("frame").to_pylist()
         start = len(entity.frames)
         entity.frames += frames
+        entity.row_ids += batch.column("rerun.controls.RowId").to_pylist()
         for name in set(names) | set(entity.values):
             column = batch.column(name).to_pylist() if name in names else [None] * len(frames)
             entity.values[name] += [None] * (start - len(entity.values[name])) + column
     for entity in rows.values():
-        order = sorted(range(len(entity.frames)), key=entity.frames.__getitem__)
+        order = sorted(range(len(entity.frames)), key=lambda i: (entity.frames[i], entity.row_ids[i]))
         entity.frames = [entity.frames[i] for i in order]
+        entity.row_ids = [entity.row_ids[i] for i in order]
         for name, values in entity.values.items():
             values += [None] * (len(order) - len(values))
             entity.values[name] = [values[i] for i in order]
