@@ -18,24 +18,33 @@ Records: `Snapshot` in (one rig frame: images per view, 42 joints, raw pressure)
 pressure in [0, 1], NaN outside the `TactileLayout`). The subpackages (`touchanything.devices`, `.inference`,
 `.viz`, `.app`) hold the rest; what is listed in `__all__` here is the public, stable surface.
 """
-from touchanything.app.sessions.bundled import bundled_models, sample_episodes
-from touchanything.devices.camera_pose.estimator import CameraPoseConfig, HandPoseEstimator
-from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.errors import DataError, UserError
-from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.inference.engine.engine_config import EngineConfig
-from touchanything.inference.engine.live_engine import LiveEngine
-from touchanything.inference.engine.prediction import Prediction
-from touchanything.inference.engine.streaming_engine import StreamingEngine
-from touchanything.inference.evaluation.evaluation import evaluate
-from touchanything.inference.evaluation.metrics import ALL_METRICS, METRICS, MetricAccumulator, aggregate, compute_tactile_metrics
-from touchanything.inference.evaluation.trajectory_prediction import predict_trajectory
-from touchanything.inference.model.checkpoint import build_model, load_model, save_checkpoint
-from touchanything.inference.model.model_config import PRESETS, ModelConfig, read_model_config
-from touchanything.inference.model.touch_model import TouchAnything
+from __future__ import annotations
+
+import importlib
+
+_SOURCES = {
+    "touchanything.app.sessions.bundled": ("bundled_models", "sample_episodes"),
+    "touchanything.devices.camera_pose.estimator": ("CameraPoseConfig", "HandPoseEstimator"),
+    "touchanything.devices.episodes.episode": ("Episode",),
+    "touchanything.devices.episodes.episode_loader": ("open_episode",),
+    "touchanything.devices.errors": ("DataError", "UserError"),
+    "touchanything.devices.rig.replay": ("ReplayConfig", "ReplaySource"),
+    "touchanything.devices.snapshot": ("VIEW_NAMES", "Snapshot"),
+    "touchanything.devices.tactile_layout": ("TactileLayout",),
+    "touchanything.inference.engine.engine_config": ("EngineConfig",),
+    "touchanything.inference.engine.live_engine": ("LiveEngine",),
+    "touchanything.inference.engine.prediction": ("Prediction",),
+    "touchanything.inference.engine.streaming_engine": ("StreamingEngine",),
+    "touchanything.inference.evaluation.evaluation": ("evaluate",),
+    "touchanything.inference.evaluation.metrics": ("ALL_METRICS", "METRICS", "MetricAccumulator", "aggregate", "compute_tactile_metrics"),
+    "touchanything.inference.evaluation.trajectory_prediction": ("predict_trajectory",),
+    "touchanything.inference.model.checkpoint": ("build_model", "load_model", "save_checkpoint"),
+    "touchanything.inference.model.model_config": ("PRESETS", "ModelConfig", "read_model_config"),
+    "touchanything.inference.model.touch_model": ("TouchAnything",),
+}
+"""module → the public names it holds: each is imported on first use, so that `import touchanything` (and the
+command line, whose `--help` needs none of them) does not load torch."""
+_MODULE = {name: module for module, names in _SOURCES.items() for name in names}
 
 __all__ = [
     # the model
@@ -52,3 +61,15 @@ __all__ = [
     # errors a user can act on
     "UserError", "DataError",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """A public name, imported on first use."""
+    if name not in _MODULE:
+        raise AttributeError(f"module 'touchanything' has no attribute {name!r}")
+    value = globals()[name] = getattr(importlib.import_module(_MODULE[name]), name)
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

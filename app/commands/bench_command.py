@@ -8,9 +8,7 @@ import platform
 import sys
 import time
 from pathlib import Path
-
-import onnxruntime
-import torch
+from typing import TYPE_CHECKING
 
 from touchanything.app.sessions.bundled import ATLAS_FILE, MODELS_DIR, OUTPUT_DIR, SAMPLE_DIR, bundled_models
 from touchanything.app.sessions.engine_choice import DEFAULT_MODEL, add_device_argument
@@ -18,10 +16,6 @@ from touchanything.app.sessions.setting_choice import budget_request
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import check_report_folder, write_text
 from touchanything.inference.evaluation.atlas import file_sha256
-from touchanything.inference.evaluation.bench import BenchPlan, bench_model
-from touchanything.inference.evaluation.bench_accuracy import HeldOut
-from touchanything.inference.evaluation.bench_data import first_latency_clip, held_out_paths
-from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown
 from touchanything.inference.evaluation.bench_intervals import add_intervals, align_rows, paired_comparisons
 from touchanything.inference.evaluation.bench_report import (
     GPU_OUTPUT_FILES,
@@ -33,11 +27,13 @@ from touchanything.inference.evaluation.bench_report import (
     write_outputs,
 )
 from touchanything.inference.evaluation.bootstrap import FEW_TRAJECTORIES
-from touchanything.inference.model.checkpoint import load_model
-from touchanything.inference.model.model_config import preset
-from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.torch_device import device_label, resolve_device
-from touchanything.inference.model.touch_model import TouchAnything
+
+if TYPE_CHECKING:
+    import torch
+
+    from touchanything.inference.evaluation.bench_accuracy import HeldOut
+    from touchanything.inference.model.models import TactileModel
 
 LATENCY_CLIP_FRAMES = 60
 
@@ -79,6 +75,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 def load_models(folders: list[Path] | None) -> dict[str, tuple[TactileModel, Path]]:
     """name → (model, checkpoint) for each folder (default: every bundled model), smallest first by parameter
     count."""
+    from touchanything.inference.model.checkpoint import load_model
+
     folders = folders or sorted(checkpoint.parent for checkpoint in bundled_models().values())
     if not folders:
         raise UserError(f"{MODELS_DIR}: no bundled models; pass --models")
@@ -87,12 +85,18 @@ def load_models(folders: list[Path] | None) -> dict[str, tuple[TactileModel, Pat
 
 
 def machine() -> str:
+    import onnxruntime
+    import torch
+
     return (f"{os.cpu_count()} CPU cores ({platform.machine()}), torch {torch.__version__}, "
             f"onnxruntime {onnxruntime.__version__}")
 
 
 def run_on_gpu(args: argparse.Namespace, device: torch.device) -> int:
     """The GPU settings (`bench_gpu`) into OUT/engine_gpu.{json,md}."""
+    from touchanything.inference.evaluation.bench_data import first_latency_clip, held_out_paths
+    from touchanything.inference.evaluation.bench_gpu import bench_presets_on, gpu_markdown
+
     paths = [path for path, _ in held_out_paths(args.data, args.splits)]
     clip = first_latency_clip(paths, LATENCY_CLIP_FRAMES)
     started = time.perf_counter()
@@ -120,6 +124,9 @@ def check_arguments(args: argparse.Namespace) -> int | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.inference.evaluation.bench_accuracy import HeldOut
+    from touchanything.inference.evaluation.bench_data import held_out_paths
+
     device = resolve_device(args.device)
     if args.budget_ms is not None:
         return budget(args)
@@ -140,6 +147,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def atlas(args: argparse.Namespace, models: dict[str, tuple[TactileModel, Path]], held_out: HeldOut) -> int:
+    import torch
+
+    from touchanything.inference.evaluation.bench import BenchPlan, bench_model
+    from touchanything.inference.evaluation.bench_data import first_latency_clip
+    from touchanything.inference.model.model_config import preset
+    from touchanything.inference.model.touch_model import TouchAnything
+
     clip = first_latency_clip([path for path, _ in held_out.pairs], LATENCY_CLIP_FRAMES)
     if len(held_out.pairs) < FEW_TRAJECTORIES:  # said once the data read (an error stays one line)
         print(f"warning: only {len(held_out.pairs)} held-out trajectories: the 95 % intervals are wide (use a dataset "

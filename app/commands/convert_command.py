@@ -4,8 +4,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.app.sessions.progress_bar import ProgressBar
-from touchanything.devices.episodes.dataset_conversion import CONVERSION_REPORT, QUALITY_REPORT, convert_dataset
 from touchanything.devices.output_safety import add_overwrite_argument
 
 
@@ -23,6 +21,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.app.sessions.progress_bar import ProgressBar
+    from touchanything.devices.episodes.dataset_conversion import CONVERSION_REPORT, QUALITY_REPORT, convert_dataset
+
     bars: list[ProgressBar] = []  # the bar appears once the inputs and outputs were checked (an error is one line)
     frames = [0]
 

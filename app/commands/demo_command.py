@@ -8,7 +8,6 @@ from pathlib import Path
 
 from touchanything.app.sessions.bundled import OUTPUT_DIR, SAMPLE_DIR, sample_episodes
 from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint
-from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
 from touchanything.app.sessions.setting_choice import add_setting_arguments, picked_setting, setting_request
 from touchanything.devices.errors import UserError
@@ -37,6 +36,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
+
     path = args.episode
     if path is None:
         samples = sample_episodes()

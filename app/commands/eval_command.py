@@ -7,26 +7,20 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from tqdm import tqdm
 
 from touchanything.app.sessions.bundled import BASELINES, MODELS_DIR, bundled_baselines
-from touchanything.app.sessions.engine_choice import view_set_argument
+from touchanything.app.sessions.engine_choice import add_device_argument, view_set_argument
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, check_rrd_output
-from touchanything.app.sessions.rerun_trajectories import TrajectoryRecordings
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
-from touchanything.devices.episodes.episode_loader import episode_exists, open_episode
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import add_overwrite_argument, check_report_folder, write_text
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.view_sets import VIEW_HELP, VIEW_SETS, view_set_name
-from touchanything.inference.evaluation.evaluation import EvaluationResult, evaluate, vision_share_summary
 from touchanything.inference.evaluation.metrics import DETECTION_METRICS, EVENT_METRICS, METRICS
-from touchanything.inference.model.checkpoint import load_model
-from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.torch_device import (
-    DEVICE_HELP,
     PRECISIONS,
     ProcessGroup,
     check_precision,
@@ -34,8 +28,11 @@ from touchanything.inference.model.torch_device import (
     join_process_group,
     resolve_device,
 )
-from touchanything.viz.comparison_video import comparison_frame, write_comparison_video
-from touchanything.viz.hand3d_panel import hand3d_panel
+
+if TYPE_CHECKING:
+    from touchanything.app.sessions.rerun_trajectories import TrajectoryRecordings
+    from touchanything.inference.evaluation.evaluation import EvaluationResult
+    from touchanything.inference.model.models import TactileModel
 
 RESULT_FILES = ("results.json", "results.md")
 TIMING_COLUMNS = DETECTION_METRICS[:3] + EVENT_METRICS[:4]
@@ -58,7 +55,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--batch-size", type=int, default=16, help="clips per forward pass (default 16)")
     parser.add_argument("--ego-path", choices=("frames", "views"), default="frames",
                         help="ego-only through the official frames= path (default) or the multi-view encoder")
-    parser.add_argument("--device", default="auto", help=f"where the model runs: {DEVICE_HELP} (default auto)")
+    add_device_argument(parser)
     parser.add_argument("--precision", default="fp32", choices=tuple(PRECISIONS),
                         help="autocast precision (the official script evaluates under fp16 on a GPU; default fp32)")
     parser.add_argument("--pose-only-baseline", nargs="?", const=True, type=Path, metavar="CHECKPOINT",
@@ -104,6 +101,8 @@ def baseline_pairs(results: list[EvaluationResult]) -> list[tuple[EvaluationResu
 
 def _share_table(results: list[EvaluationResult], mode: str) -> list[str]:
     """The vision share of each metric, a row per view configuration and scene (none without baselines)."""
+    from touchanything.inference.evaluation.evaluation import vision_share_summary
+
     pairs = baseline_pairs(results)
     if not pairs:
         return []
@@ -136,6 +135,9 @@ def markdown(results: list[EvaluationResult], split: str, pose_only: str | None 
 def trajectory_frames(episode, prediction, gt, hand3d: bool = False):
     """Comparison frames of one evaluated trajectory (stitched prediction against ground truth); `hand3d`: with
     the pressure painted on the 3D hands (the episode's WiLoR poses)."""
+    from touchanything.viz.comparison_video import comparison_frame
+    from touchanything.viz.hand3d_panel import hand3d_panel
+
     for i in range(episode.num_frames):
         images = {v: s.read(i) for v, s in episode.views.items()}
         footer = f"Frame {i:04d}/{episode.num_frames}  t={episode.timestamps_us[i] / 1e6:.2f}s  [{episode.task}/{episode.trajectory_id}]"
@@ -147,6 +149,8 @@ def trajectory_frames(episode, prediction, gt, hand3d: bool = False):
 
 
 def split_files(data: Path, split: str, split_file: Path | None, num_traj: int | None) -> list[Path]:
+    from touchanything.devices.episodes.episode_loader import episode_exists
+
     files = read_split(split_file or data / SPLIT_FILE)[split]
     if num_traj is not None:
         if num_traj < 1:
@@ -163,6 +167,8 @@ def split_files(data: Path, split: str, split_file: Path | None, num_traj: int |
 def _frame_count(path: Path) -> int:
     """The trajectory's frames for the progress bar's total; 0 for one that cannot be read (the evaluation
     names it and goes on)."""
+    from touchanything.devices.episodes.episode_loader import open_episode
+
     try:
         with open_episode(path) as episode:
             return episode.num_frames
@@ -175,6 +181,11 @@ def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: s
     """One view configuration (`blank`: its pose-only twin; `name`: a baseline's); `recordings`: each trajectory
     into the Rerun recording. The progress bar (main process) shows the frames encoded out of this process's
     total, frames/s and trajectories done."""
+    from tqdm import tqdm
+
+    from touchanything.inference.evaluation.evaluation import evaluate
+    from touchanything.viz.comparison_video import write_comparison_video
+
     mine = files[group.rank::group.world]
     finished = []
     suffix = f"_{name}" if name else "_pose_only" if blank else ""
@@ -195,6 +206,8 @@ def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: s
 
 def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> dict:
     """One entry of results.json; a pose-only baseline also carries its `vision_share` per mode and scene."""
+    from touchanything.inference.evaluation.evaluation import vision_share_summary
+
     record = {"views": result.views, "pose_only": result.blank, "baseline": result.baseline or None,
               "stitched": result.summary("stitched"),
               "causal": result.summary("causal")}
@@ -206,6 +219,8 @@ def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> 
 
 def pose_only_model(args: argparse.Namespace, model: TactileModel, device) -> tuple[Path | None, TactileModel | None]:
     """The checkpoint and model of the pose-only rows: none, the evaluated one, or `--pose-only-baseline CHECKPOINT`."""
+    from touchanything.inference.model.checkpoint import load_model
+
     if args.pose_only_baseline is None:
         return None, None
     if args.pose_only_baseline is True or args.pose_only_baseline == args.checkpoint:
@@ -216,6 +231,8 @@ def pose_only_model(args: argparse.Namespace, model: TactileModel, device) -> tu
 def baseline_models(args: argparse.Namespace, device) -> dict[str, tuple[Path, TactileModel]]:
     """name → (checkpoint, model) of `--baselines` (none without the flag; the bundled ones when it is given
     empty), loaded before any evaluation."""
+    from touchanything.inference.model.checkpoint import load_model
+
     if args.baselines is None:
         return {}
     checkpoints = {path.parent.name: path for path in args.baselines} if args.baselines else bundled_baselines()
@@ -235,6 +252,9 @@ def view_configurations(chosen: list[tuple[str, ...]]) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.app.sessions.rerun_trajectories import TrajectoryRecordings
+    from touchanything.inference.model.checkpoint import load_model
+
     configurations = view_configurations(args.views)
     if args.batch_size < 1:
         raise UserError(f"--batch-size must be at least 1, got {args.batch_size}")

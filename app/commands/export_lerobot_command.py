@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from tqdm import tqdm
-
-from touchanything.devices.episodes.lerobot_export import check_action, export_lerobot, source_episodes
 from touchanything.devices.episodes.lerobot_format import ACTION_CHOICES
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import add_overwrite_argument, check_output, check_outside
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -38,6 +39,10 @@ def _show(bar: tqdm, written: int, total: int) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from touchanything.devices.episodes.lerobot_export import check_action, export_lerobot, source_episodes
+
     check_action(args.action)
     if not args.root.exists():
         raise UserError(f"{args.root}: not found")

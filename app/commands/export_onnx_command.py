@@ -3,15 +3,16 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from touchanything.devices.output_safety import check_output
 from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.inference.engine.engine_runtime import TorchRuntime
-from touchanything.inference.engine.onnx_export import WINDOW, export_onnx
-from touchanything.inference.engine.onnx_runtime import OnnxRuntime
-from touchanything.inference.model.checkpoint import load_model
+
+if TYPE_CHECKING:
+    from touchanything.inference.engine.engine_runtime import TorchRuntime
+    from touchanything.inference.engine.onnx_runtime import OnnxRuntime
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -25,6 +26,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 def agreement(torch_runtime: TorchRuntime, onnx_runtime: OnnxRuntime, size: int, seed: int = 0) -> float:
     """Max |ONNX − torch| over one random three-view window, both hands."""
+    from touchanything.inference.engine.onnx_export import WINDOW
+
     rng = np.random.default_rng(seed)
     ids = np.arange(len(VIEW_NAMES), dtype=np.int64)
     images = [rng.normal(0, 1, (len(ids), 3, size, size)).astype(np.float32) for _ in range(WINDOW)]
@@ -35,6 +38,11 @@ def agreement(torch_runtime: TorchRuntime, onnx_runtime: OnnxRuntime, size: int,
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.inference.engine.engine_runtime import TorchRuntime
+    from touchanything.inference.engine.onnx_export import export_onnx
+    from touchanything.inference.engine.onnx_runtime import OnnxRuntime
+    from touchanything.inference.model.checkpoint import load_model
+
     check_output(args.out, (args.checkpoint, args.config), folder=True)
     model = load_model(args.checkpoint, args.config)
     manifest = export_onnx(model, args.out, int8=args.int8, source=str(args.checkpoint))

@@ -5,8 +5,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from touchanything.devices.episodes.episode_writer import write_grids_from_glove
-from touchanything.devices.episodes.raw_episode import GLOVE_FILE, GRIDS_FILE
 from touchanything.devices.errors import DataError, require_finite_positive
 from touchanything.devices.output_safety import check_output, named
 from touchanything.devices.snapshot import HANDS
@@ -37,6 +35,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Every episode is tried; one that cannot be computed is named on stderr, its grids left as they were,
     and the exit status is 1."""
+    from touchanything.devices.episodes.episode_writer import write_grids_from_glove
+    from touchanything.devices.episodes.raw_episode import GLOVE_FILE, GRIDS_FILE
+
     require_finite_positive("--min-scale", args.min_scale)
     layout = TactileLayout.from_dir(args.layout) if args.layout else TactileLayout.default()
     config = TactileConfig(broken_columns=tuple(args.repair_column), min_scale=args.min_scale)

@@ -4,9 +4,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.app.sessions.episode_summary import NOT_VERIFIED, dataset_lines, episode_lines, verify_lines
-from touchanything.devices.episodes.episode_loader import episode_exists, open_episode
-from touchanything.devices.episodes.raw_episode import is_raw_episode
 from touchanything.devices.errors import UserError, failure_line
 
 
@@ -20,6 +17,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.app.sessions.episode_summary import NOT_VERIFIED, dataset_lines, episode_lines, verify_lines
+    from touchanything.devices.episodes.episode_loader import episode_exists, open_episode
+    from touchanything.devices.episodes.raw_episode import is_raw_episode
+
     """Exit status 1 when a trajectory of a root cannot be read, or (with --verify) something is damaged."""
     path: Path = args.path
     if not episode_exists(path):

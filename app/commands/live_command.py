@@ -19,11 +19,9 @@ from touchanything.app.sessions.rerun_output import (
     rerun_target,
     session_properties,
 )
-from touchanything.app.sessions.rerun_sink import RerunSink, seconds_since_first
 from touchanything.app.sessions.setting_choice import PickedSetting, add_setting_arguments, picked_setting, setting_request
 from touchanything.devices.errors import require_finite_positive
 from touchanything.devices.output_safety import add_overwrite_argument
-from touchanything.viz.hand_projection import pose_label
 
 SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
 
@@ -68,6 +66,8 @@ def open_live_session(scene_path: Path, device: str | None = None, picked: Picke
 
 def run_headless(session, seconds: float) -> dict:
     """Run the started session for `seconds`, printing one status line per second; returns a summary."""
+    from touchanything.viz.hand_projection import pose_label
+
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         time.sleep(min(1.0, max(deadline - time.monotonic(), 0)))
@@ -93,6 +93,7 @@ def run_headless(session, seconds: float) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.app.sessions.rerun_sink import RerunSink, seconds_since_first
     from touchanything.viz.dashboard.dashboard import Dashboard
     from touchanything.viz.display import display_problem
 

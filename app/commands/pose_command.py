@@ -5,10 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tqdm import tqdm
-
-from touchanything.app.sessions.pose_file import write_pose_file
-from touchanything.devices.camera_pose.estimator import CameraPoseConfig
 from touchanything.devices.output_safety import add_overwrite_argument
 
 
@@ -24,6 +20,11 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from touchanything.app.sessions.pose_file import write_pose_file
+    from touchanything.devices.camera_pose.estimator import CameraPoseConfig
+
     bars: list[tqdm] = []
 
     def show(done: int, total: int) -> None:

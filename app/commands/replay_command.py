@@ -8,7 +8,6 @@ from pathlib import Path
 
 from touchanything.app.sessions.bundled import OUTPUT_DIR
 from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint, view_set_argument
-from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
 from touchanything.app.sessions.setting_choice import PickedSetting, add_setting_arguments, picked_setting, setting_request
 from touchanything.devices.output_safety import add_overwrite_argument
@@ -71,6 +70,8 @@ def default_video(path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
+
     request = setting_request(args)
     inputs = (args.episode, *(request.inputs if request else (args.checkpoint or default_checkpoint(), args.config)))
     rerun = rerun_target(args, inputs)

@@ -4,9 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.app.sessions.progress_bar import ProgressBar
 from touchanything.devices.output_safety import add_overwrite_argument, check_output, replacing_folder
-from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfig, check_config, percent, simulate_dataset
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -22,6 +20,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.app.sessions.progress_bar import ProgressBar
+    from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfig, check_config, percent, simulate_dataset
+
     config = SimulationConfig(args.episodes, args.seconds, args.seed, args.workers)
     check_config(config)
     check_output(args.out, (), args.overwrite, whole=True)

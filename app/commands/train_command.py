@@ -8,8 +8,6 @@ from dataclasses import replace
 from pathlib import Path
 
 from touchanything.devices.output_safety import check_output
-from touchanything.inference.training.train_config import describe_settings, train_config_from_file, with_epochs
-from touchanything.inference.training.trainer import BEST, LAST, Trainer
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -28,6 +26,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.inference.training.train_config import describe_settings, train_config_from_file, with_epochs
+    from touchanything.inference.training.trainer import BEST, LAST, Trainer
+
     config = train_config_from_file(args.config)
     if args.epochs is not None:
         config, note = with_epochs(config, args.epochs)

@@ -5,8 +5,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from touchanything.devices.episodes.episode_loader import find_raw_episodes
-
 ROOT = Path(__file__).resolve().parents[2]
 MODELS_DIR = ROOT / "models"
 SAMPLE_DIR = ROOT / "recordings" / "sample"
@@ -36,4 +34,6 @@ def bundled_baselines() -> dict[str, Path]:
 
 def sample_episodes() -> list[Path]:
     """The bundled sample episodes (raw folders under recordings/sample)."""
+    from touchanything.devices.episodes.episode_loader import find_raw_episodes  # imported where used: --help loads this module
+
     return find_raw_episodes(SAMPLE_DIR) if SAMPLE_DIR.is_dir() else []

@@ -5,17 +5,19 @@ from __future__ import annotations
 import argparse
 from dataclasses import dataclass, replace
 from pathlib import Path
-
-import torch
+from typing import TYPE_CHECKING
 
 from touchanything.app.sessions.bundled import MODELS_DIR, bundled_models
 from touchanything.devices.view_sets import parse_view_set
 from touchanything.inference.engine.engine_config import EngineConfig
-from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_setting import BenchSetting
-from touchanything.inference.model.checkpoint import load_model
 from touchanything.inference.model.model_card import read_card
 from touchanything.inference.model.torch_device import DEVICE_HELP, device_label
+
+if TYPE_CHECKING:
+    import torch
+
+    from touchanything.inference.engine.streaming_engine import StreamingEngine
 
 DEFAULT_MODEL = "nano"
 CPU_TIERS = ("torch fp32", "torch bf16", "onnx fp32", "onnx int8")
@@ -114,6 +116,9 @@ def illustrative_note(choice: ModelChoice, camera_pose: bool) -> str:
 def build_engine(choice: ModelChoice, views: tuple[str, ...]) -> StreamingEngine:
     """Load the checkpoint and build its engine (an ONNX tier exports its graphs on first use);
     a bad checkpoint, config or tier raises UserError."""
+    from touchanything.inference.engine.streaming_engine import StreamingEngine  # imported where used: --help loads this module
+    from touchanything.inference.model.checkpoint import load_model
+
     config = EngineConfig(runtime=choice.runtime, precision=choice.precision, device=choice.device, views=views,
                           every=choice.every, output=choice.output).check()
     return StreamingEngine(load_model(choice.checkpoint, choice.config), config)

@@ -10,14 +10,16 @@ import sys
 import time
 from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from touchanything.app.sessions.engine_choice import ModelChoice, model_label
-from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.episodes.episode_loader import is_plain_video
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import check_output, replacing
-from touchanything.inference.engine.streaming_engine import StreamingEngine
-from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
+
+if TYPE_CHECKING:  # rerun, torch and the episode readers are imported where used: --help loads this module
+    from touchanything.devices.episodes.episode import Episode
+    from touchanything.inference.engine.streaming_engine import StreamingEngine
+    from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
 
 DEFAULT_WEB_PORT = 9090
 LIVE_IMAGE_SCALE = 0.5
@@ -54,11 +56,15 @@ def rerun_target(args: argparse.Namespace, inputs: Iterable[Path | None] = (), i
         check_rrd_output(args.rerun, args.overwrite, inputs)
     if args.rerun_serve is not None and not 0 < args.rerun_serve < 65536:
         raise UserError(f"--rerun-serve: {args.rerun_serve} is not a port number (1–65535)")
+    from touchanything.viz.rerun_recording import RerunTarget
+
     return RerunTarget(args.rerun, args.rerun_serve, image_scale=image_scale)
 
 
 def open_recording(target: RerunTarget, name: str, properties: Mapping[str, str]) -> RerunRecording:
     """Open the recording; says where it is served. A port already in use is a UserError."""
+    from touchanything.viz.rerun_recording import RerunRecording
+
     try:
         recording = RerunRecording(target, name, properties)
     except (OSError, RuntimeError, ValueError) as exc:
@@ -85,6 +91,8 @@ def finish(recording: RerunRecording, keep_serving: bool = True) -> None:
 
 def episode_name(episode: Episode) -> str:
     """"Scene/task/trajectory", or the file name of a plain video."""
+    from touchanything.devices.episodes.episode_loader import is_plain_video
+
     return episode.path.name if is_plain_video(episode) else f"{episode.scene}/{episode.task}/{episode.trajectory_id}"
 
 

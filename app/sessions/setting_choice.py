@@ -20,9 +20,7 @@ from touchanything.inference.evaluation.atlas import (
     read_atlas,
     rows_for,
 )
-from touchanything.inference.evaluation.bench_data import episode_paths, first_latency_clip
 from touchanything.inference.evaluation.bench_setting import NAME_HELP
-from touchanything.inference.model.checkpoint import load_model
 
 PROBE_CLIP_FRAMES = 60
 ENGINE_OPTIONS = ("checkpoint", "config", "runtime", "precision", "views")
@@ -94,6 +92,10 @@ class SettingRequest:
             return PickedSetting(row, self.checkpoints[row.setting.model], None,
                                  f"setting {row.name}: {row.accuracy_line()}; p99 {row.atlas_p99_ms:.2f} ms where the "
                                  "atlas was measured")
+        # imported where used: --help loads this module
+        from touchanything.inference.evaluation.bench_data import episode_paths, first_latency_clip
+        from touchanything.inference.model.checkpoint import load_model
+
         clip = first_latency_clip(episode_paths(SAMPLE_DIR), PROBE_CLIP_FRAMES)
         models = {}
 

@@ -1,4 +1,5 @@
-"""`split.json` (train / val / test_seen / test_unseen): reading, writing, and the official split builder."""
+"""`split.json` (train / val / test_seen / test_unseen): reading, writing, and the official split builder. The
+HDF5 readers are imported where the builder uses them: `touchanything --help` loads this module."""
 from __future__ import annotations
 
 import json
@@ -7,12 +8,9 @@ import random
 from dataclasses import dataclass
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from touchanything.devices.episodes.episode_files import read_json_file
-from touchanything.devices.episodes.episode_loader import find_hdf5_files
-from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS, WILOR_VALID_KEYS, frame_count, read_dataset
 from touchanything.devices.errors import DataError, UserError, failure_line, require_fraction, require_seed
 from touchanything.devices.output_safety import write_text
 
@@ -111,6 +109,10 @@ def empty_split_problem(split: dict[str, list[Path]], excluded: dict[Path, str])
 def quality_problem(path: Path, config: SplitConfig) -> str | None:
     """Why a trajectory fails the quality filter, or None. Pose-valid = at least one valid WiLoR hand. A
     trajectory that cannot be read (any error) is excluded with the reason, naming the dataset or attribute."""
+    import h5py
+
+    from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS, WILOR_VALID_KEYS, frame_count, read_dataset
+
     try:
         with h5py.File(path, "r") as file:
             frames = frame_count(file)
@@ -134,6 +136,8 @@ def build_split(hdf5_root: Path, config: SplitConfig = SplitConfig()) -> tuple[d
 
     Files are `<root>/<Scene>/<Task>/<id>.hdf5`. Returns the split and the excluded files with reasons.
     """
+    from touchanything.devices.episodes.episode_loader import find_hdf5_files
+
     check_split_config(config)
     files = find_hdf5_files(hdf5_root)
     if not files:

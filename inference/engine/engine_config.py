@@ -1,19 +1,21 @@
 """Streaming-engine settings: which runtime and precision, which views, which output position and rate.
 
 Pure configuration: checking a config builds nothing; `touchanything.inference.engine.engine_runtime.make_runtime`
-turns it into a runtime.
+turns it into a runtime. torch is imported where it is used: `touchanything --help` loads this module.
 """
 from __future__ import annotations
 
 import os
 from dataclasses import dataclass
 from pathlib import Path
-
-import torch
+from typing import TYPE_CHECKING
 
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.inference.model.torch_device import check_precision, resolve_device
+
+if TYPE_CHECKING:
+    import torch
 
 RUNTIMES = {"torch": ("fp32", "bf16", "fp16", "tf32"), "onnx": ("fp32", "int8")}
 """Runtime → the precisions it offers (torch fp16 and tf32 on a CUDA GPU only)."""
@@ -25,6 +27,8 @@ def engine_device(runtime: str, device: str) -> torch.device:
     """The device `runtime` runs on for the `--device` setting: torch resolves it (`resolve_device`); ONNX
     Runtime runs on the CPU here (the CPU build is installed), so `auto` means the CPU for it and a CUDA
     device is one UserError line."""
+    import torch
+
     if runtime == "onnx":
         if device not in ("auto", "cpu"):
             resolve_device(device)  # a malformed name is named as such

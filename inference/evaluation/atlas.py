@@ -18,14 +18,16 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from touchanything.devices.errors import UserError, require_finite_positive
 from touchanything.devices.snapshot import Snapshot
-from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_setting import BenchSetting, parse_setting
-from touchanything.inference.model.models import TactileModel
+
+if TYPE_CHECKING:
+    from touchanything.inference.model.models import TactileModel
 
 PROBE_FRAMES = {True: 40, False: 150}
 """Frames timed per setting by the probe, --quick or not (after `PROBE_WARMUP` untimed ones)."""
@@ -123,6 +125,8 @@ def find_row(rows: list[AtlasRow], name: str, atlas: Path) -> AtlasRow:
 def probe_p99(model: TactileModel, setting: BenchSetting, clip: list[Snapshot], frames: int, device: str) -> float:
     """p99 per-frame step time (ms) of `setting` on this machine over `frames` frames of `clip` (after
     PROBE_WARMUP untimed ones); ONNX graphs come from the user cache (exported on first use)."""
+    from touchanything.inference.engine.streaming_engine import StreamingEngine  # imported where used: --help loads this module
+
     engine = StreamingEngine(model, dataclasses.replace(setting.engine_config(None), device=device).check())
     times = []
     for i in range(PROBE_WARMUP + frames):

@@ -1,5 +1,6 @@
 """Where the model runs: the `--device` setting (auto, cpu, cuda, cuda:N), the precisions a device offers, and
-the process group of a `torchrun` launch."""
+the process group of a `torchrun` launch. torch is imported where it is used: `touchanything --help` loads this
+module."""
 from __future__ import annotations
 
 import os
@@ -7,21 +8,24 @@ import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-
-import torch
-import torch.distributed as dist
+from typing import TYPE_CHECKING
 
 from touchanything.devices.errors import UserError
 
+if TYPE_CHECKING:
+    import torch
+
 DEVICE_HELP = "auto (the first CUDA GPU when there is one, else the CPU), cpu, cuda or cuda:N"
-PRECISIONS = {"fp32": None, "bf16": torch.bfloat16, "fp16": torch.float16, "tf32": None}
-"""Precision name → the autocast dtype (None: no autocast). tf32 keeps fp32 weights and activations and lets a
-CUDA GPU's matrix products and convolutions run in TensorFloat-32 (`autocast`)."""
+PRECISIONS = {"fp32": None, "bf16": "bfloat16", "fp16": "float16", "tf32": None}
+"""Precision name → the name of its autocast dtype in torch (None: no autocast). tf32 keeps fp32 weights and
+activations and lets a CUDA GPU's matrix products and convolutions run in TensorFloat-32 (`autocast`)."""
 
 
 def resolve_device(name: str, local_rank: int = 0) -> torch.device:
     """`auto` → cuda:`local_rank` when CUDA is available, else cpu; `cpu`; `cuda` (= cuda:`local_rank`) or
     `cuda:N`. One UserError line for a malformed name, CUDA asked for but absent, or N out of range."""
+    import torch
+
     if not isinstance(name, str):
         raise UserError(f"device must be text ({DEVICE_HELP}), got {name!r}")
     if name == "auto":
@@ -51,6 +55,8 @@ def check_precision(precision: str, device: torch.device) -> None:
 
 def device_label(device: torch.device) -> str:
     """`cpu` or `cuda:0 (NVIDIA H100 80GB HBM3)`: what the dashboard, summaries and bench rows show."""
+    import torch
+
     if device.type != "cuda":
         return device.type
     return f"{device} ({torch.cuda.get_device_name(device)})"
@@ -62,7 +68,9 @@ def autocast(device: torch.device, precision: str) -> Iterator[None]:
     CUDA matrix products and cuDNN convolutions in TensorFloat-32 (`matmul_precision`). Autocast's weight-cast
     cache is off: a CUDA graph captured under autocast would otherwise point at cached casts freed when the
     context exits (each call enters a fresh context, so the cache would not outlive a call anyway)."""
-    dtype = PRECISIONS[precision]
+    import torch
+
+    dtype = getattr(torch, PRECISIONS[precision]) if PRECISIONS[precision] else None
     with matmul_precision("tf32" if precision == "tf32" else None), \
             torch.autocast(device.type, dtype=dtype, enabled=dtype is not None, cache_enabled=False):
         yield
@@ -76,6 +84,8 @@ def matmul_precision(mode: str | None) -> Iterator[None]:
     if mode is None:
         yield
         return
+    import torch
+
     settings = (torch.backends.cuda.matmul, torch.backends.cudnn.conv)
     before = [s.fp32_precision for s in settings]
     try:
@@ -103,6 +113,9 @@ class ProcessGroup:
 def join_process_group(device_name: str = "auto") -> ProcessGroup:
     """Under `torchrun` (WORLD_SIZE > 1) initialise the process group once — NCCL when this process runs on
     a CUDA GPU (made the current device), else gloo — and return where this process stands."""
+    import torch
+    import torch.distributed as dist
+
     world = int(os.environ.get("WORLD_SIZE", "1"))
     local = int(os.environ.get("LOCAL_RANK", "0"))
     if world > 1 and not dist.is_initialized():
