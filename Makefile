@@ -15,9 +15,14 @@ PYTEST_ARGS ?=
 demo: $(BASE_STAMP) $(HAND_MODEL)
 	$(VENV)/bin/touchanything demo
 
+# The suite in two runs: everything that neither measures time nor holds a machine resource in $(TEST_WORKERS)
+# worker processes, then the `serial` tests (tests/conftest.py SERIAL_MODULES) one by one on an otherwise idle machine.
+TEST_WORKERS ?= 2
+
 test: $(DEV_STAMP) $(HAND_MODEL) xvfb
 	$(VENV)/bin/ruff check .
-	$(PY) -m pytest $(PYTEST_ARGS)
+	$(PY) -m pytest -n $(TEST_WORKERS) -m "not serial" $(PYTEST_ARGS) || [ $$? -eq 5 ]  # 5: PYTEST_ARGS selected none
+	$(PY) -m pytest -m serial $(PYTEST_ARGS) || [ $$? -eq 5 ]
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)

@@ -8,7 +8,7 @@ weights, seed 0) and the bundled `nano` (trained weights), each a newest-frame e
   the same device, fp32, with the same preprocessing (max |difference| over the hands the engine predicted);
 - `eager vs graphs`: the engine with CUDA graphs off against on (both fp32; on the CPU both are eager);
 - `bf16 vs fp32`, `fp16 vs fp32`, `tf32 vs fp32` (fp16 and tf32 on a GPU only): max and mean |difference|, and the share of hand-frames
-  whose contact (the dashboard's lamp: the official rule per hand, `viz.contact.hand_contact`) is the same;
+  whose contact (the dashboard's lamp: the official rule per hand, `viz.frame_facts.hand_contact`) is the same;
 - `preprocessing`: the device's resize (`model_input_on_device`) against cv2's (`model_input`), in intensity
   levels of 1/255, over every frame and view of the clip at each model's input size.
 Writes `gpu_exactness.json` and `.md` into `--out`. The same code runs on the CPU (CI runs it there).
@@ -36,7 +36,7 @@ from touchanything.inference.model.pose_encoder import prepare_poses
 from touchanything.inference.model.preprocess import IMAGENET_STD, model_input, model_input_on_device
 from touchanything.inference.model.torch_device import PRECISIONS, device_label, resolve_device
 from touchanything.inference.model.touch_model import TouchAnything
-from touchanything.viz.contact import hand_contact
+from touchanything.viz.frame_facts import hand_contact
 
 BEND = TactileLayout.default().bend
 

@@ -40,21 +40,26 @@ def logging_cost(episode, folder: Path, videos: bool, scale: float) -> dict:
     from touchanything.app.sessions.replay_export import log_episode_videos
     from touchanything.devices.snapshot import VIEW_NAMES
     from touchanything.devices.tactile_layout import TactileLayout
-    from touchanything.viz.contact import hand_contact
+    from touchanything.inference.evaluation.running_metrics import RunningMetrics
+    from touchanything.viz.frame_facts import frame_facts
     from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
 
     bend, grids, hands = TactileLayout.default().bend, episode.pressure.grids, episode.wilor
     images = [{v: s.read(i) for v, s in episode.views.items()} for i in range(episode.num_frames)]  # decoded beforehand
     path = folder / f"cost_{videos}_{scale}.rrd"
     recording = RerunRecording(RerunTarget(path, image_scale=scale), "cost", {"benchmark": "rerun_costs"})
-    metrics = {"temporal_accuracy": 0.5, "contact_iou": 0.2, "volumetric_iou": 0.1, "mae": 0.1}
+    metrics = RunningMetrics(bend)
+    facts = []  # decided beforehand, as the session does before it hands a frame to the logger
+    for i in range(episode.num_frames):
+        metrics.add(grids[i], grids[i])
+        facts.append(frame_facts(grids[i], hands.valid[i], grids[i], bend, metrics=metrics))
     if videos:
         log_episode_videos(recording, episode, VIEW_NAMES)
 
     def step(i: int) -> None:
-        t, joints, valid, contact = i / 30, hands.joints[i].reshape(42, 3), hands.valid[i], hand_contact(grids[i], bend)
-        recording.log_observation(i, t, images[i], joints, valid, grids[i], contact, {})
-        recording.log_prediction(i, t, grids[i], contact, joints, valid, grids[i], 12.0, 11.0, metrics, metrics)
+        t, joints, valid = i / 30, hands.joints[i].reshape(42, 3), hands.valid[i]
+        recording.log_observation(i, t, images[i], joints, valid, grids[i], facts[i], {})
+        recording.log_prediction(i, t, grids[i], facts[i], joints, valid, grids[i], 12.0, 11.0)
 
     row = _timed(step, episode.num_frames)
     recording.close()

@@ -1,12 +1,18 @@
-"""The one set of view names every command accepts: the official view names (`ego`, `wrist_left`,
-`wrist_right`), their short forms (`left`, `right`), `+`-joined sets (`ego+left`) and `all`; and the official
-evaluation's four view configurations (`ego`, `ego+left`, `ego+right`, `all`)."""
+"""The views' vocabulary, in one place: the official view names (`ego`, `wrist_left`, `wrist_right`: the
+model's and `Snapshot`'s), their ids in view-set ids (`ego`, `left`, `right`: what `--views` takes and what
+every command prints: `ego+left`, `all`), the label user-facing text calls each one (the dashboard, the
+comparison video, Rerun, `info`), and the official evaluation's four view configurations (`ego`, `ego+left`,
+`ego+right`, `all`). A raw episode's files keep the official names: chest.mp4, left.mp4, right.mp4
+(`devices.episodes.raw_episode.VIDEO_FILES`)."""
 from __future__ import annotations
 
 from touchanything.devices.snapshot import VIEW_NAMES
 
-VIEW_ALIASES = {"ego": "ego", "wrist_left": "wrist_left", "left": "wrist_left", "wrist_right": "wrist_right",
-                "right": "wrist_right"}
+VIEW_IDS = {"ego": "ego", "wrist_left": "left", "wrist_right": "right"}
+"""Official view name → its id in view-set ids (`ego+left`)."""
+VIEW_LABELS = {"ego": "head camera", "wrist_left": "left wrist camera", "wrist_right": "right wrist camera"}
+"""Official view name → what every user-facing text calls it."""
+VIEW_ALIASES = {**{view: view for view in VIEW_NAMES}, **{short: view for view, short in VIEW_IDS.items()}}
 """Every accepted spelling of one view → its official name."""
 VIEW_SETS = {"ego": ("ego",), "ego+left": ("ego", "wrist_left"), "ego+right": ("ego", "wrist_right"), "all": VIEW_NAMES}
 """The official evaluation's view configurations (`inference_tactile_parallel.py --views`) → the views they use."""
@@ -28,8 +34,9 @@ def parse_view_set(text: str) -> tuple[str, ...]:
 
 
 def view_set_name(views: tuple[str, ...]) -> str:
-    """The official configuration name of a view set (`ego+left`, `all`), else its short names joined by `+`."""
+    """The id of a view set, as `--views` takes it: the official configuration's name (`ego+left`, `all`), else
+    its views' ids joined by `+` (`left+right`; "" for no view)."""
     for name, members in VIEW_SETS.items():
         if set(members) == set(views):
             return name
-    return "+".join(v.removeprefix("wrist_") for v in VIEW_NAMES if v in views)
+    return "+".join(VIEW_IDS[v] for v in VIEW_NAMES if v in views)

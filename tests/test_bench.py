@@ -45,7 +45,7 @@ def test_rows_have_the_documented_fields(nano_rows):
             assert key in row
         assert row["model"] == "nano" and row["trajectories"] == 1 and len(row["per_trajectory"]["volumetric_iou"]) == 1
         assert row["device"] == "cpu" and row["gpu_name"] is None
-        assert row["views"] == "ego+wrist_left+wrist_right" and row["latency_frames"] == 10
+        assert row["views"] == "all" and row["latency_frames"] == 10
         assert 0 < row["p50_ms"] <= row["p99_ms"] and row["peak_rss_mb"] > 0
         assert 0 <= row["volumetric_iou"] <= 1 and row["throughput_fps"] > 0
     assert rows[0]["agreement_viou"] == 1.0 and rows[0]["agreement_max_abs"] == 0.0

@@ -22,7 +22,7 @@ from touchanything.devices.camera_pose.estimator import STAGE, CameraPoseConfig,
 from touchanything.devices.camera_pose.model_file import installed_model_path
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.raw_episode import open_raw_episode
-from touchanything.devices.episodes.video_io import VideoReader
+from touchanything.devices.episodes.video_io import VideoReader, VideoWriter
 from touchanything.devices.errors import UserError
 from touchanything.devices.hand_pose import pose_is_valid
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
@@ -191,6 +191,7 @@ def test_pose_writes_a_wilor_file_the_episode_reader_takes(hand_video, tmp_path,
     assert main(["pose", str(folder / "chest.mp4"), "--out", str(out)]) == 0
     captured = capsys.readouterr()
     assert "100%" in captured.err and f"wrote     {out}" in captured.out and "poses     camera estimate" in captured.out
+    assert "no hand" not in captured.out
     rows = [json.loads(line) for line in out.read_text().splitlines()]
     assert [row["frame_index"] for row in rows] == list(range(FRAMES))
     assert rows[0]["left_pos"] == [] and len(rows[-1]["right_pos"]) == 21
@@ -294,6 +295,19 @@ def touchanything(*argv: str) -> subprocess.CompletedProcess:
     (written by its C++ side straight to the process's stderr) included."""
     return subprocess.run([str(Path(sys.executable).with_name("touchanything")), *argv], capture_output=True, text=True,
                           timeout=300)
+
+
+def test_pose_on_gloved_hands_says_that_gloves_are_not_detected(tmp_path, capsys):
+    sample = next((Path(__file__).resolve().parents[1] / "recordings" / "sample").glob("*/*/*/chest.mp4"))
+    reader, writer = VideoReader(sample), VideoWriter(tmp_path / "gloved.mp4", fragmented=False)
+    for i in range(0, 150, 15):  # ten frames of the sample's simulated gloved hands, in contact half the time
+        writer.write(reader.read(i))
+    writer.close()
+    reader.close()
+    assert main(["pose", str(tmp_path / "gloved.mp4"), "--out", str(tmp_path / "w.json")]) == 0
+    out = capsys.readouterr().out
+    assert "left hand in 0, right hand in 0 of 10 frames" in out
+    assert "no hand   found in any frame: the camera estimate finds bare hands only — gloved hands" in out
 
 
 def test_the_terminal_shows_no_library_logging_and_one_line_for_a_missing_model(hand_video, tmp_path):

@@ -130,8 +130,10 @@ def test_split_refuses_a_trajectory_as_its_output(sim_hdf5_root, tmp_path, capsy
         assert main(["split", str(root), "--out", str(trajectory), *extra]) == 2
         assert f"{trajectory}: would replace a file of the input" in one_line(capsys)
     assert checksums(root) == before
-    assert main(["split", str(root)]) == 2  # an existing split.json (say the simulator's) is kept and named
-    assert "split.json: a split is already there (" in one_line(capsys)
+    assert main(["split", str(root)]) == 0  # an existing split.json (say the simulator's) is kept and named
+    assert "split.json: a split is already there (" in capsys.readouterr().out and checksums(root) == before
+    (root / "split.json").write_text("{not json")
+    assert main(["split", str(root)]) == 2 and "it is kept: --overwrite replaces it" in one_line(capsys)
     assert main(["split", str(root), "--overwrite"]) == 0
     capsys.readouterr()
 

@@ -85,7 +85,7 @@ def test_the_outline_follows_the_contact_region():
     assert (pressure_maps(grids, CELL, outline=measured, threshold=0.6) == plain).all()  # nothing above it
 
 
-@pytest.mark.parametrize("text", ["Ground Truth Pressure", "Predicted Pressure", "Prediction - Ground Truth"])
+@pytest.mark.parametrize("text", ["measured pressure", "predicted pressure", "prediction − measured"])
 def test_a_title_is_drawn_once_with_its_shadow_under_it(text):
     image = np.full((40, 400, 3), 128, np.uint8)
     put_text(image, text, (10, 25), 0.6)
@@ -99,19 +99,23 @@ def test_a_title_is_drawn_once_with_its_shadow_under_it(text):
 def test_a_hand_without_a_pose_reads_no_pose_not_zero_pressure():
     """Bare-hand replay: a hand the engine did not predict (it holds 0 there) is drawn as background with its
     label, never as the blue of zero pressure; the predicted hand keeps its map."""
+    from touchanything.devices.tactile_layout import TactileLayout
     from touchanything.inference.engine.prediction import Prediction
     from touchanything.viz.dashboard.dashboard_panels import pressure_views
     from touchanything.viz.dashboard.dashboard_state import SessionState
+    from touchanything.viz.frame_facts import frame_facts
 
     pressure = np.zeros((2, 21, 21), np.float32)
     prediction = Prediction(frame_index=0, t_us=0, pressure=pressure, hands_predicted=(True, False),
                             views_used=("ego",), latency_ms=1.0)
-    views = pressure_views(SessionState(prediction=prediction, truth=np.full((2, 21, 21), 0.3, np.float32)), CELL, 0.1, False)
+    truth = np.full((2, 21, 21), 0.3, np.float32)
+    facts = frame_facts(pressure, prediction.hands_predicted, truth, TactileLayout.default().bend)
+    views = pressure_views(SessionState(prediction=prediction, truth=truth, facts=facts), CELL, 0.1, False)
     for name in ("predicted", "error"):
         image, title = views[name]
         right = image[:, SIZE + MAP_GAP:2 * SIZE + MAP_GAP].astype(int)
         assert not (np.abs(right - PRESSURE_LUT[0]).max(axis=-1) < 20).any(), name
         assert (np.abs(right - BACKGROUND).max(axis=-1) < 8).mean() > 0.8 and (right > 200).all(axis=-1).sum() > 10, name
     assert (cell_colour(views["predicted"][0], 0, 5, 5) == PRESSURE_LUT[0]).all()
-    assert views["predicted"][1] == "Predicted pressure (right: no pose)"
+    assert views["predicted"][1] == "predicted pressure (no pose: right)"
     assert np.isnan(unposed_as_nan(pressure, (True, False))[1]).all() and (pressure == 0).all()  # a copy

@@ -9,6 +9,7 @@ from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
+from touchanything.viz.frame_facts import FrameFacts, HandFacts
 from touchanything.viz.pressure_panel import BACKGROUND
 
 
@@ -19,7 +20,7 @@ def test_replay_exports_a_playable_video_with_metrics(episode_dir, tmp_path, cap
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "frames    40 written, 40 with a prediction" in printed and "contact_iou" in printed
-    assert "contact   lamps agree on " in printed and "; 40 frames)" in printed
+    assert "contact   lamps agree on " in printed and "where a hand was predicted and measured)" in printed
     with VideoReader(out) as video:
         assert video.num_frames == 40
         frame = video.read(39)
@@ -38,12 +39,16 @@ def test_an_episode_without_ground_truth_shows_the_prediction_only(episode_dir, 
     assert "metrics   n/a" in printed and "40 with a prediction" in printed and "lamps" not in printed
 
 
-def test_the_lamp_agreement_counts_each_hand():
+def test_the_lamp_agreement_counts_each_hand_where_both_lamps_are_known():
     summary = ReplaySummary()
-    summary.add_lamps(np.array([True, False]), np.array([True, True]))
-    summary.add_lamps(np.array([False, False]), np.array([True, False]))
-    assert summary.lamps_agree == [1, 1] and summary.lamps_shown == 2
-    assert summary.lamp_line().startswith("contact   lamps agree on 50.0 % of the predicted frames (left 50.0 %, right 50.0 %")
+    known = lambda p, m: HandFacts(True, True, p, m)  # noqa: E731 - a posed and measured hand
+    summary.add_lamps(FrameFacts(True, True, (known(True, True), known(False, True))))
+    summary.add_lamps(FrameFacts(True, True, (known(False, True), known(False, False))))
+    summary.add_lamps(FrameFacts(True, True, (known(True, True), HandFacts(False, True, None, True))))  # right: no pose
+    summary.add_lamps(FrameFacts(False, True, (HandFacts(False, True, None, True), HandFacts(False, True, None, False))))
+    assert summary.lamps_agree == [2, 1] and summary.lamps_judged == [3, 2]
+    assert summary.lamp_line() == ("contact   lamps agree on 60.0 % (left 66.7 % of 3 frames, right 50.0 % of 2; "
+                                   "where a hand was predicted and measured)")
 
 
 def test_replay_errors_are_one_clear_line(episode_dir, tmp_path, capsys):

@@ -26,7 +26,7 @@ from touchanything.devices.snapshot import Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
 from touchanything.viz.colormap import PRESSURE_LUT, apply
-from touchanything.viz.contact import hand_contact
+from touchanything.viz.frame_facts import frame_facts, hand_contact
 from touchanything.viz.hand_surface import hand_topology
 from touchanything.viz.pressure_panel import BACKGROUND
 from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
@@ -119,12 +119,15 @@ def _two_frames(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndar
     measured[1, 5, 7], measured[0, 14, 3] = 0.625, 1.0
     predicted = measured.copy()
     predicted[1, 5, 7] = 0.3125
+    bend = TactileLayout.default().bend
+    both, measured_only, nothing = (frame_facts(predicted, None, measured, bend), frame_facts(None, None, measured, bend),
+                                    frame_facts(None, None, None, bend))
     recording = RerunRecording(RerunTarget(path), "two frames", {})
-    recording.log_observation(0, 0.0, {}, joints, valid, measured, None, {})
-    recording.log_prediction(0, 0.0, predicted, None, joints, valid, measured, None, None, None, None)
-    recording.log_observation(1, 0.033, {}, joints, valid, measured, None, {})
-    recording.log_prediction(1, 0.033, None, None, joints, valid, measured, None, None, None, None)
-    recording.log_observation(2, 0.067, {}, joints, np.array([True, False]), None, None, {})
+    recording.log_observation(0, 0.0, {}, joints, valid, measured, both, {})
+    recording.log_prediction(0, 0.0, predicted, both, joints, valid, measured, None, None)
+    recording.log_observation(1, 0.033, {}, joints, valid, measured, measured_only, {})
+    recording.log_prediction(1, 0.033, None, measured_only, joints, valid, measured, None, None)
+    recording.log_observation(2, 0.067, {}, joints, np.array([True, False]), None, nothing, {})
     recording.close()
     return joints, valid, measured, predicted
 

@@ -3,6 +3,7 @@ objects give way visibly, a hover is visible at the model's input size, the pose
 the pose-ambiguity statistic moves the right way."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import cv2
@@ -247,5 +248,9 @@ def test_simulate_prints_the_pose_error_and_ambiguity(tmp_path, capsys):
     assert main(["simulate", str(tmp_path / "out"), "--episodes", "1", "--seconds", "4", "--seed", "8"]) == 0
     out = capsys.readouterr().out
     assert "pose-ambiguous contact:" in out and "pose error (RMS over joints): median" in out
+    # one episode cannot fill a train and a test list: said, not left for `train` to find
+    split = json.loads((tmp_path / "out" / "split.json").read_text())
+    assert sum(map(len, split.values())) == 1 and f"split     train {len(split['train'])}, val " in out
+    assert "warning   the " in out and "list(s) is empty" in out and "simulate more episodes" in out
     card = (tmp_path / "out" / "dataset_card.md").read_text()
     assert "## Pose error and pose ambiguity" in card

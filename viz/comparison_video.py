@@ -1,4 +1,4 @@
-"""Comparison frames (cameras on top; ground truth, prediction and error in the middle; metric and
+"""Comparison frames (cameras on top; measured, predicted and their difference in the middle; metric and
 latency plots and the contact lamps at the bottom) and the video writer."""
 from __future__ import annotations
 
@@ -9,19 +9,20 @@ import numpy as np
 
 from touchanything.devices.episodes.video_io import VideoWriter, video_comment
 from touchanything.devices.output_safety import replacing
-from touchanything.viz.pressure_panel import BACKGROUND, pressure_panel, put_text
+from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.view_sets import VIEW_LABELS
+from touchanything.viz.pressure_panel import BACKGROUND, MAP_TITLES, pressure_panel, put_text
 
 WIDTH, CAMERA_HEIGHT, PANEL_HEIGHT, STRIP_HEIGHT, FOOTER_HEIGHT = 1440, 270, 360, 150, 26
 CAPTION_COLOURS = ((235, 235, 235), (40, 180, 255))  # BGR: the model line, then a warning in amber
 COMMENT = "touchanything comparison video"
 """The comment tag of every comparison video: what a later run may replace without --overwrite."""
-VIEW_LABELS = {"ego": "Head", "wrist_left": "Left Wrist", "wrist_right": "Right Wrist"}
 
 
 def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred: np.ndarray | None, footer: str,
                      strip: np.ndarray | None = None, hand3d: np.ndarray | None = None,
                      caption: tuple[str, ...] = ()) -> np.ndarray:
-    """(806, 1440, 3) uint8: the three views (480×270 each), GT | prediction | error panels, `strip`
+    """(806, 1440, 3) uint8: the three views (480×270 each), the measured | predicted | difference maps, `strip`
     (150, 1440, 3) and the footer line; without a strip (656, 1440, 3). `hand3d` (h, 1440, 3), the pressure on
     the 3D hands, goes below the panels (the frame grows by h).
 
@@ -31,14 +32,14 @@ def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred:
     extra = 0 if hand3d is None else hand3d.shape[0]
     frame = np.empty((CAMERA_HEIGHT + PANEL_HEIGHT + extra + strip_height + FOOTER_HEIGHT, WIDTH, 3), np.uint8)
     frame[:] = BACKGROUND
-    for k, (view, label) in enumerate(VIEW_LABELS.items()):
-        x = k * 480
+    for k, view in enumerate(VIEW_NAMES):
+        x, label = k * 480, VIEW_LABELS[view]
         image = images.get(view)
         if image is not None:
             frame[:CAMERA_HEIGHT, x:x + 480] = cv2.resize(image, (480, CAMERA_HEIGHT), interpolation=cv2.INTER_AREA)
         put_text(frame, label if image is not None else f"{label}: no image", (x + 8, 22), 0.6)
-    panels = [(gt, "Ground Truth Pressure", False, "no glove"), (pred, "Predicted Pressure", False, "no pose"),
-              (None if gt is None or pred is None else pred - gt, "Prediction - Ground Truth", True, "n/a")]
+    panels = [(gt, MAP_TITLES["measured"], False, "no glove"), (pred, MAP_TITLES["predicted"], False, "no pose"),
+              (None if gt is None or pred is None else pred - gt, MAP_TITLES["error"], True, "n/a")]
     for k, (grids, title, error, empty) in enumerate(panels):
         x = k * 480
         if grids is None:

@@ -1,8 +1,5 @@
-"""Contact indicators: per hand, does the prediction and does the measurement say "in contact"?
-
-The rule is the official per-frame contact rule applied to each hand on its own: at least 5 % of the
-hand's non-NaN, non-bend cells are strictly above the contact threshold (official threshold 0.1).
-"""
+"""Contact lamps as an image (the comparison video's): per hand, does the prediction and does the measurement
+say "in contact", and do they agree — as a frame's `FrameFacts` decided it (`viz.frame_facts`)."""
 from __future__ import annotations
 
 import functools
@@ -10,35 +7,43 @@ import functools
 import cv2
 import numpy as np
 
-from touchanything.inference.evaluation.metrics import CONTACT_THRESHOLD, contact_frames
+from touchanything.devices.snapshot import HANDS
+from touchanything.viz.frame_facts import FrameFacts
 from touchanything.viz.pressure_panel import BACKGROUND, put_text
 
 ON, OFF, UNKNOWN = (60, 200, 90), (90, 90, 110), (60, 60, 80)
+AGREE, DISAGREE = (160, 230, 160), (255, 140, 120)
 
 
-def hand_contact(grids: np.ndarray | None, bend: np.ndarray, threshold: float = CONTACT_THRESHOLD) -> np.ndarray | None:
-    """(2, 21, 21) grid (NaN outside the layout) → (2,) bool contact per hand; None stays None."""
-    if grids is None:
-        return None
-    return np.array([contact_frames(np.asarray(grids[h])[None, None], bend[h][None], threshold)[0] for h in range(2)])
+def lamp_colour(contact: bool | None) -> tuple[int, int, int]:
+    """Green in contact, grey not, dark unknown (no prediction of the hand, no glove map of it)."""
+    return UNKNOWN if contact is None else ON if contact else OFF
 
 
-def contact_badges(predicted: np.ndarray | None, measured: np.ndarray | None, width: int, height: int) -> np.ndarray:
-    """(height, width, 3) uint8: a row per hand with a predicted and a measured lamp (green = contact,
-    grey = none, dark = unknown) and whether they agree."""
+def verdict(agree: bool | None) -> tuple[str, tuple[int, int, int]]:
+    """The agreement's word and colour: "ok", "miss", or "" when unknown."""
+    return ("", AGREE) if agree is None else ("ok", AGREE) if agree else ("miss", DISAGREE)
+
+
+def contact_badges(facts: FrameFacts, width: int, height: int) -> np.ndarray:
+    """(height, width, 3) uint8: a row per hand with a predicted and a measured lamp (`lamp_colour`) and the
+    verdict (`verdict`)."""
     image = _badge_frame(width, height).copy()
     row = max(height // 3, 14)
     radius = max(min(row // 3, 12), 3)
-    for h in range(2):
+    for h, hand in enumerate(facts.hands):
         y = row * (h + 2) - row // 2
-        for k, flags in enumerate((predicted, measured)):
-            colour = UNKNOWN if flags is None else (ON if flags[h] else OFF)
-            _disc(image, (width // 3 + 14 + k * (width // 3 - 10), y), radius, colour)
-        if predicted is not None and measured is not None:
-            agree = predicted[h] == measured[h]
-            put_text(image, "ok" if agree else "miss", (width - 46, y + 5), 0.4,
-                     (160, 230, 160) if agree else (255, 140, 120))
+        for k, contact in enumerate((hand.contact_predicted, hand.contact_measured)):
+            _disc(image, lamp_centre(k, h, width, row), radius, lamp_colour(contact))
+        word, colour = verdict(hand.agree)
+        if word:
+            put_text(image, word, (width - 46, y + 5), 0.4, colour)
     return image
+
+
+def lamp_centre(k: int, h: int, width: int, row: int) -> tuple[int, int]:
+    """Where lamp `k` (0 predicted, 1 measured) of hand `h` is in a `contact_badges` image."""
+    return width // 3 + 14 + k * (width // 3 - 10), row * (h + 2) - row // 2
 
 
 @functools.lru_cache(maxsize=8)
@@ -50,7 +55,7 @@ def _badge_frame(width: int, height: int) -> np.ndarray:
     put_text(image, "contact", (8, row - 6), 0.45)
     put_text(image, "pred", (width // 3, row - 6), 0.4)
     put_text(image, "meas", (2 * width // 3 - 10, row - 6), 0.4)
-    for h, label in enumerate(("left", "right")):
+    for h, label in enumerate(HANDS):
         put_text(image, label, (8, row * (h + 2) - row // 2 + 5), 0.45)
     image.flags.writeable = False
     return image

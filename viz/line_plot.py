@@ -17,7 +17,7 @@ def line_plot(series: dict[str, np.ndarray], width: int, height: int, y_max: flo
               capacity: int, unit: str = "") -> np.ndarray:
     """(height, width, 3) uint8. series: label → 1-D values, the last `capacity` shown left to right with
     the newest at the right edge; NaN leaves a gap; values are clipped to [0, y_max]. The legend shows
-    each series' latest finite value ("n/a" when none)."""
+    each series' latest value ("n/a" when it is NaN or there is none): the value of the frame shown."""
     image = np.empty((height, width, 3), np.uint8)
     image[:] = BACKGROUND
     left, top, right, bottom = 34, 24, width - 6, height - 8
@@ -35,8 +35,8 @@ def line_plot(series: dict[str, np.ndarray], width: int, height: int, y_max: flo
         for segment in _finite_runs(np.isfinite(values)):
             points = np.stack([x[segment], y[segment]], axis=1).round().astype(np.int32)
             cv2.polylines(image, [points], False, colour, 1, cv2.LINE_AA)
-        finite = values[np.isfinite(values)]
-        text = f"{label} {finite[-1]:.{0 if unit else 2}f}{unit}" if finite.size else f"{label} n/a"
+        latest = values[-1] if values.size else np.nan
+        text = f"{label} {latest:.{0 if unit else 2}f}{unit}" if np.isfinite(latest) else f"{label} n/a"
         put_text(image, text, (legend_x, 16), 0.4, colour)
         legend_x += 9 * len(text) + 12
     return image

@@ -15,6 +15,10 @@ BACKGROUND = (26, 26, 46)
 """The official figure background #1a1a2e."""
 AXES = (17, 17, 34)
 FONT = cv2.FONT_HERSHEY_SIMPLEX
+MAP_TITLES = {"measured": "measured pressure", "predicted": "predicted pressure", "error": "prediction − measured"}
+"""What every user-facing text calls the three maps (the dashboard, the comparison video, Rerun)."""
+HAND_LABELS = ("left hand", "right hand")
+"""The maps' hand labels, [left, right]."""
 
 
 def hand_map(grid: np.ndarray, cell: int, error: bool = False) -> np.ndarray:
@@ -66,12 +70,11 @@ def unposed_as_nan(pressure: np.ndarray, hands_predicted: tuple[bool, bool]) -> 
 
 
 def pressure_panel(grids: np.ndarray, title: str, width: int, height: int, error: bool = False,
-                   labels: tuple[str, str] = ("Left Hand", "Right Hand"), outline: np.ndarray | None = None,
-                   threshold: float = 0.1, empty: str = "n/a") -> np.ndarray:
+                   outline: np.ndarray | None = None, threshold: float = 0.1, empty: str = "n/a") -> np.ndarray:
     """(2, 21, 21) → (height, width, 3) panel: title, both hands side by side, a colour bar. `outline`
     (2, 21, 21), e.g. the measured pressure, draws its contact region (> threshold) as a contour; a hand
     without any value reads `empty`."""
-    panel = _panel_frame(title, width, height, error, labels).copy()
+    panel = _panel_frame(title, width, height, error).copy()
     cell, top = panel_cell(width, height), 40
     maps = pressure_maps(grids, cell, error, outline, threshold, bar=False, empty=empty)
     panel[top:top + maps.shape[0], MAP_GAP:MAP_GAP + maps.shape[1]] = maps
@@ -115,14 +118,14 @@ def pressure_maps(grids: np.ndarray, cell: int, error: bool = False, outline: np
 
 
 @functools.lru_cache(maxsize=64)
-def _panel_frame(title: str, width: int, height: int, error: bool, labels: tuple[str, str]) -> np.ndarray:
+def _panel_frame(title: str, width: int, height: int, error: bool) -> np.ndarray:
     """Everything but the maps (drawn once per title and size: text rendering is the slow part)."""
     panel = np.empty((height, width, 3), np.uint8)
     panel[:] = BACKGROUND
     put_text(panel, title, (10, 22), 0.6)
     top, size = 40, 21 * panel_cell(width, height)
     for h in range(2):
-        put_text(panel, labels[h], (MAP_GAP + h * (size + MAP_GAP), top + size + 16), 0.45)
+        put_text(panel, HAND_LABELS[h], (MAP_GAP + h * (size + MAP_GAP), top + size + 16), 0.45)
     bar_left = MAP_GAP + 2 * (size + MAP_GAP)
     if bar_left + BAR_WIDTH <= width:
         panel[top:top + size, bar_left:bar_left + BAR_WIDTH] = colour_bar(size, error=error)

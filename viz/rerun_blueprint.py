@@ -8,11 +8,14 @@ from __future__ import annotations
 import rerun.blueprint as rrb
 
 from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.view_sets import VIEW_LABELS
+from touchanything.viz.pressure_panel import MAP_TITLES
 from touchanything.viz.rerun_hands import paint_overrides
 
 SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
 """The official metrics logged per frame (rolling over 3 s and cumulative)."""
-VIEW_LABELS = {"ego": "Head camera", "wrist_left": "Left wrist camera", "wrist_right": "Right wrist camera"}
+MAP_ENTITIES = {"measured": "measured", "predicted": "predicted", "error": "difference"}
+"""The maps' `pressure/…` entities."""
 
 
 def _hands(kind: str, title: str) -> rrb.Spatial3DView:
@@ -22,17 +25,14 @@ def _hands(kind: str, title: str) -> rrb.Spatial3DView:
 
 def default_blueprint() -> rrb.Blueprint:
     cameras = rrb.Horizontal(*(rrb.Spatial2DView(origin=f"cameras/{view}", name=VIEW_LABELS[view]) for view in VIEW_NAMES))
-    maps = rrb.Vertical(
-        rrb.Spatial2DView(origin="pressure/measured", name="Measured pressure (left | right)"),
-        rrb.Spatial2DView(origin="pressure/predicted", name="Predicted pressure (left | right)"),
-        rrb.Spatial2DView(origin="pressure/difference", name="Predicted − measured (left | right)"),
-    )
-    hands = rrb.Horizontal(_hands("measured", "Measured on the hand"), _hands("predicted", "Predicted on the hand"))
+    maps = rrb.Vertical(*(rrb.Spatial2DView(origin=f"pressure/{entity}", name=f"{MAP_TITLES[name]} (left | right)")
+                          for name, entity in MAP_ENTITIES.items()))
+    hands = rrb.Horizontal(*(_hands(kind, f"{MAP_TITLES[kind]} on the hands") for kind in ("measured", "predicted")))
     plots = rrb.Horizontal(
-        rrb.TimeSeriesView(origin="metrics", name="Official metrics (3 s and all)"),
-        rrb.TimeSeriesView(origin="engine", name="Latency and engine step (ms)"),
-        rrb.TimeSeriesView(origin="contact", name="Contact (official rule per hand)"),
-        rrb.Spatial3DView(origin="trackers", name="Trackers"),
+        rrb.TimeSeriesView(origin="metrics", name="official metrics (3 s and all)"),
+        rrb.TimeSeriesView(origin="engine", name="latency and engine step (ms)"),
+        rrb.TimeSeriesView(origin="contact", name="contact (official rule per hand)"),
+        rrb.Spatial3DView(origin="trackers", name="trackers"),
     )
     layout = rrb.Vertical(cameras, rrb.Horizontal(maps, hands, column_shares=[1, 2]), plots, row_shares=[3, 4, 2])
     return rrb.Blueprint(layout, rrb.TimePanel(timeline="frame"))

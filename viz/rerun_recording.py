@@ -17,12 +17,15 @@ Every row is on two timelines: `frame` (the episode's frame index, or the live r
   hovering a cell shows its pressure ("Val") and its grid position (x: column, y: row; the right hand's image
   placed 22 cells to the right). `pressure/difference`: predicted − measured on [−1, 1] (blue: too low, red: too
   high), as a PNG.
-- `contact/{measured,predicted}`: the official contact rule per hand, [left, right], 0 or 1.
-- `metrics/{rolling,cumulative}`: the official metrics `SHOWN_METRICS` over the last 3 s and over everything so far.
+- `contact/{measured,predicted}`: the official contact rule per hand, [left, right], 0 or 1, NaN (a gap) for a
+  hand that map does not have (not predicted: no pose; no glove sample) — the frame's `FrameFacts`.
+- `metrics/{rolling,cumulative}`: the official metrics `SHOWN_METRICS` over the last 3 s and over everything so
+  far (the frame's `FrameFacts`; NaN where undefined).
 - `engine`: [capture-to-prediction latency, the engine's time for the step] in ms.
 - `trackers/{chest,left_wrist,right_wrist}`: the Vive tracker poses as transforms (OpenVR frame, y up).
 
-A hand without a valid pose, a missing map or prediction is cleared at its frame (nothing stale is shown). Entities
+A hand without a valid pose, a missing map or prediction is cleared at its frame (nothing stale is shown); a
+hand the model did not predict is background on the predicted and the difference map, as in the dashboard. Entities
 are grouped so that a frame takes about 20 log calls: the calls, not the bytes, are what logging costs.
 """
 from __future__ import annotations
@@ -41,8 +44,9 @@ from touchanything.devices.hand_pose import project_wilor
 from touchanything.devices.output_safety import temporary_path
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
-from touchanything.viz.pressure_panel import BACKGROUND
-from touchanything.viz.rerun_blueprint import SHOWN_METRICS, default_blueprint
+from touchanything.viz.frame_facts import FrameFacts
+from touchanything.viz.pressure_panel import BACKGROUND, unposed_as_nan
+from touchanything.viz.rerun_blueprint import MAP_ENTITIES, SHOWN_METRICS, default_blueprint
 from touchanything.viz.rerun_columns import ColumnBuffer
 from touchanything.viz.rerun_hands import HandSurfaces, hand_classes
 
@@ -130,7 +134,7 @@ class RerunRecording:
         log("engine", rr.SeriesLines(names=["latency ms", "engine step ms"]), static=True)
         log("world/hands", rr.Points3D.from_fields(radii=0.004, show_labels=False), static=True)
         log("cameras/ego/hands", rr.Points2D.from_fields(radii=2.5, show_labels=False), static=True)
-        for kind in ("measured", "predicted", "difference"):
+        for kind in MAP_ENTITIES.values():
             log(f"pressure/{kind}", rr.EncodedImage.from_fields(media_type="image/png", magnification_filter="nearest",
                                                                 opacity=1.0, draw_order=MAP_DRAW_ORDER), static=True)
         value_type = rr.encodings.ChannelDatatype.from_np_dtype(np.dtype(VALUE_DTYPE))
@@ -165,11 +169,11 @@ class RerunRecording:
         return set(self._videos)
 
     def log_observation(self, frame: int, time_s: float, images: Mapping[str, np.ndarray], joints: np.ndarray,
-                        valid: np.ndarray, measured: np.ndarray | None, measured_contact: np.ndarray | None,
+                        valid: np.ndarray, measured: np.ndarray | None, facts: FrameFacts,
                         trackers: Mapping[str, np.ndarray]) -> None:
         """What the rig saw at `frame`: camera frames {view: (H, W, 3) uint8 RGB} (views logged as videos are
-        skipped), joints (42, 3) with valid (2,), the measured map (2, 21, 21) and its contact (2,) bool (None:
-        no glove), tracker poses {role: (7,) trans + rot w, x, y, z}."""
+        skipped), joints (42, 3) with valid (2,), the measured map (2, 21, 21) (None: no glove) and its contact
+        as `facts` (of this frame) decided it, tracker poses {role: (7,) trans + rot w, x, y, z}."""
         at = (frame, time_s)
         for view, image in images.items():
             if view not in self._videos:
@@ -178,7 +182,8 @@ class RerunRecording:
         self._log_map("measured", measured, PRESSURE_LUT, 0.0, at)
         self._log_values("measured", measured, at)
         self._surfaces.paint("measured", at, joints, valid, measured)
-        self._log_contact("measured", measured_contact, at)
+        if facts.measured:
+            self._rows.put("contact/measured", rr.Scalars, *at, scalars=facts.contact("measured"))
         for role in TRACKER_ROLES:
             pose = trackers.get(role)
             if pose is None or not np.isfinite(pose).all():
@@ -188,24 +193,27 @@ class RerunRecording:
                 self._rows.put(f"trackers/{role}", rr.Transform3D, *at, translation=np.asarray(pose[None, :3], np.float32),
                                quaternion=xyzw[None])
 
-    def log_prediction(self, frame: int, time_s: float, predicted: np.ndarray | None, predicted_contact: np.ndarray | None,
-                       joints: np.ndarray, valid: np.ndarray, measured: np.ndarray | None, latency_ms: float | None,
-                       step_ms: float | None, rolling: Mapping[str, float] | None, cumulative: Mapping[str, float] | None) -> None:
-        """The prediction for `frame` ((2, 21, 21) or None) with its contact (2,) bool, painted on that frame's
-        joints; its difference to `measured`; the latency, the engine step and the running official metrics
-        (None: not known)."""
+    def log_prediction(self, frame: int, time_s: float, predicted: np.ndarray | None, facts: FrameFacts, joints: np.ndarray,
+                       valid: np.ndarray, measured: np.ndarray | None, latency_ms: float | None, step_ms: float | None) -> None:
+        """The prediction for `frame` ((2, 21, 21) or None; a hand `facts` says was not predicted is shown as
+        none), painted on that frame's joints; its difference to `measured`; its contact and the running official
+        metrics as the frame's `facts` hold them; the latency and the engine step (None: not known)."""
         at = (frame, time_s)
+        if predicted is not None:
+            predicted = unposed_as_nan(predicted, facts.posed)
         self._log_map("predicted", predicted, PRESSURE_LUT, 0.0, at)
         self._log_values("predicted", predicted, at)
         self._surfaces.paint("predicted", at, joints, valid, predicted)
-        self._log_contact("predicted", predicted_contact, at)
+        if facts.predicted:
+            self._rows.put("contact/predicted", rr.Scalars, *at, scalars=facts.contact("predicted"))
         difference = None if predicted is None or measured is None else predicted - measured
         self._log_map("difference", difference, ERROR_LUT, -1.0, at)
         timings = np.array([np.nan if value is None else value for value in (latency_ms, step_ms)], np.float64)
         self._rows.put("engine", rr.Scalars, *at, scalars=timings)
-        for kind, values in (("rolling", rolling), ("cumulative", cumulative)):
+        for kind, values in (("rolling", facts.rolling), ("cumulative", facts.cumulative)):
             if values is not None:
-                self._rows.put(f"metrics/{kind}", rr.Scalars, *at, scalars=np.array([values[n] for n in SHOWN_METRICS], np.float64))
+                scalars = np.array([np.nan if values[n] is None else values[n] for n in SHOWN_METRICS], np.float64)
+                self._rows.put(f"metrics/{kind}", rr.Scalars, *at, scalars=scalars)
 
     def _log_image(self, view: str, image: np.ndarray, at: tuple[int, float]) -> None:
         scale = self.target.image_scale
@@ -251,10 +259,6 @@ class RerunRecording:
                 self._rows.clear(f"pressure/{kind}/{hand}", *at)
             else:
                 self._rows.put(f"pressure/{kind}/{hand}", rr.DepthImage, *at, buffer=[np.asarray(grids[h], VALUE_DTYPE).tobytes()])
-
-    def _log_contact(self, kind: str, contact: np.ndarray | None, at: tuple[int, float]) -> None:
-        if contact is not None:
-            self._rows.put(f"contact/{kind}", rr.Scalars, *at, scalars=np.asarray(contact, np.float64))
 
     def close(self) -> None:
         """Flush, close the sinks (the file gets its footer) and rename the file into place; idempotent."""

@@ -25,11 +25,12 @@ def run(args: argparse.Namespace) -> int:
     from touchanything.devices.episodes.dataset_conversion import CONVERSION_REPORT, QUALITY_REPORT, convert_dataset
 
     bars: list[ProgressBar] = []  # the bar appears once the inputs and outputs were checked (an error is one line)
-    frames = [0]
+    frames, failed = [0], [0]
 
     def progress(result) -> None:
         frames[0] += result.frames
-        bars[0].set_postfix(frames=frames[0], failed=result.status == "failed" or None, refresh=False)
+        failed[0] += result.status == "failed"
+        bars[0].set_postfix(frames=frames[0], failed=failed[0], refresh=False)
         bars[0].update(1)
         if result.status == "failed":
             bars[0].write(f"failed: {result.error}")

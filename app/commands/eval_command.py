@@ -59,8 +59,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--precision", default="fp32", choices=tuple(PRECISIONS),
                         help="autocast precision (the official script evaluates under fp16 on a GPU; default fp32)")
     parser.add_argument("--pose-only-baseline", nargs="?", const=True, type=Path, metavar="CHECKPOINT",
-                        help="also evaluate each view configuration with every frame black (pose only): this checkpoint, "
-                             "or CHECKPOINT (e.g. one trained with `train --blank-images`); reports the share of each "
+                        help="also evaluate each view configuration with every frame black (pose only): CHECKPOINT (e.g. one "
+                             "trained with `train --blank-images`), else the model's bundled twin trained on black frames "
+                             "(models/nano → models/nano_pose_only), else this checkpoint; reports the share of each "
                              "metric that vision carries")
     parser.add_argument("--baselines", nargs="*", type=Path, metavar="CHECKPOINT",
                         help="also evaluate baseline checkpoints on the same trajectories and views, their rows beside the "
@@ -218,11 +219,17 @@ def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> 
 
 
 def pose_only_model(args: argparse.Namespace, model: TactileModel, device) -> tuple[Path | None, TactileModel | None]:
-    """The checkpoint and model of the pose-only rows: none, the evaluated one, or `--pose-only-baseline CHECKPOINT`."""
+    """The checkpoint and model of the pose-only rows: none; CHECKPOINT of `--pose-only-baseline CHECKPOINT`; without
+    one, the evaluated model's bundled twin trained on black frames (models/nano → models/nano_pose_only) when
+    there is one, else the evaluated model itself."""
+    from touchanything.app.sessions.bundled import pose_only_twin
     from touchanything.inference.model.checkpoint import load_model
 
     if args.pose_only_baseline is None:
         return None, None
+    if args.pose_only_baseline is True and (twin := pose_only_twin(args.checkpoint)) is not None:
+        print(f"pose-only rows: {twin}, the model's twin trained on black frames")
+        return twin, load_model(twin).to(device)
     if args.pose_only_baseline is True or args.pose_only_baseline == args.checkpoint:
         return args.checkpoint, model
     return args.pose_only_baseline, load_model(args.pose_only_baseline).to(device)

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from touchanything.devices.episodes.lerobot_format import ACTION_CHOICES
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import add_overwrite_argument, check_output, check_outside
+from touchanything.devices.view_sets import view_set_name
 
 if TYPE_CHECKING:
     from tqdm import tqdm
@@ -53,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     with tqdm(unit="frame", desc="export") as bar:
         summary = export_lerobot(args.root, args.out, args.overwrite, args.action, lambda written, total: _show(bar, written, total))
     size = sum(p.stat().st_size for p in args.out.rglob("*") if p.is_file()) / 1e6
-    print(f"exported  {summary.episodes} episodes, {summary.frames} frames, views {', '.join(summary.views)}; "
+    print(f"exported  {summary.episodes} episodes, {summary.frames} frames, views {view_set_name(summary.views)}; "
           f"{size:.1f} MB in {args.out}")
     for problem in summary.skipped:
         print(f"skipped   {problem}")

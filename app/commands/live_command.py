@@ -66,6 +66,8 @@ def open_live_session(scene_path: Path, device: str | None = None, picked: Picke
 
 def run_headless(session, seconds: float) -> dict:
     """Run the started session for `seconds`, printing one status line per second; returns a summary."""
+    from touchanything.devices.view_sets import VIEW_LABELS
+    from touchanything.viz.frame_facts import metric_text
     from touchanything.viz.hand_projection import pose_label
 
     deadline = time.monotonic() + seconds
@@ -75,7 +77,8 @@ def run_headless(session, seconds: float) -> dict:
         prediction = state.prediction
         latency = "-" if prediction is None else f"{prediction.latency_ms:.0f} ms"
         print(f"{time.strftime('%H:%M:%S')}  rig {session.frames.rate():4.1f} Hz  engine {state.engine_fps:4.1f} fps  "
-              f"latency {latency}  " + "  ".join(f"{row.name}: {'ok' if row.connected else 'DOWN'}" for row in state.sources)
+              f"latency {latency}  " + "  ".join(f"{VIEW_LABELS.get(row.name, row.name)}: {'ok' if row.connected else 'DOWN'}"
+                                                     for row in state.sources)
               + f"  {pose_label(state.snapshot)}", flush=True)
     state = session.state()
     history = state.history.get("latency_ms", np.zeros(0))
@@ -87,7 +90,7 @@ def run_headless(session, seconds: float) -> dict:
     print(f"summary   {summary['snapshots']} snapshots, {summary['predictions']} predictions, {summary['dropped']} "
           f"dropped by the engine; latency p50 {summary['latency_p50_ms'] or float('nan'):.0f} ms")
     if state.cumulative is not None:
-        print("metrics   " + ", ".join(f"{k} {v:.3f}" for k, v in state.cumulative.items() if k in SHOWN_METRICS)
+        print("metrics   " + ", ".join(f"{k} {metric_text(v)}" for k, v in state.cumulative.items() if k in SHOWN_METRICS)
               + " (against the gloves' live pressure)")
     return summary
 

@@ -39,5 +39,8 @@ def run(args: argparse.Namespace) -> int:
         for bar in bars:
             bar.close()
     print(summary.pose_line())
+    if summary.frames and not any(summary.hands):
+        print("no hand   found in any frame: the camera estimate finds bare hands only — gloved hands (EgoTouch's tactile "
+              "gloves, the bundled sample's) are not detected (docs/camera_pose.md)")
     print(f"wrote     {args.out}")
     return 0

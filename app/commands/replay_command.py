@@ -83,9 +83,9 @@ def run(args: argparse.Namespace) -> int:
     choice, views = model_choice(args, picked), selected_views(args, picked)
     if not headless and rerun is not None and (problem := display_problem()):
         print(f"no dashboard: {problem}. Writing the Rerun recording only (--headless: the comparison video too).")
-        replay_to_video(args.episode, choice, views, None, rerun=rerun)
+        replay_to_video([args.episode], choice, views, None, rerun=rerun)
     elif headless:
-        replay_to_video(args.episode, choice, views, out, args.hand3d, rerun)
+        replay_to_video([args.episode], choice, views, out, args.hand3d, rerun)
     else:
         stats = replay_in_dashboard(args.episode, choice, views, rerun=rerun, atlas=args.atlas).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")

@@ -21,6 +21,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from touchanything.app.sessions.progress_bar import ProgressBar
+    from touchanything.devices.episodes.dataset_split import SPLIT_FILE, empty_split_problem, read_split
     from touchanything.devices.sim.dataset_generator import CARD_MD, SimulationConfig, check_config, percent, simulate_dataset
 
     config = SimulationConfig(args.episodes, args.seconds, args.seed, args.workers)
@@ -45,5 +46,9 @@ def run(args: argparse.Namespace) -> int:
               f"occluded hands {error['occluded_hand_median']} mm")
         print(f"pose-ambiguous contact: {percent(ambiguity['ambiguous_share'])} of {ambiguity['contact_frames']} sampled "
               f"contact hand-frames (a no-contact pose within {ambiguity['tolerance_mm']} mm)")
-    print(f"dataset card: {args.out / CARD_MD}; split: {args.out / 'split.json'}")
+    print(f"dataset card: {args.out / CARD_MD}; split: {args.out / SPLIT_FILE}")
+    split = read_split(args.out / SPLIT_FILE)
+    print("split     " + ", ".join(f"{key} {len(paths)}" for key, paths in split.items()))
+    if problem := empty_split_problem(split, {}):
+        print(f"warning   {problem.replace('would be', 'is')}: simulate more episodes (--episodes) to train and test on it")
     return 0

@@ -38,16 +38,15 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def check_existing_split(out: Path, overwrite: bool) -> None:
-    """Refuse to replace an existing split file without `overwrite`, naming it and what it holds."""
+def existing_split(out: Path, overwrite: bool) -> str | None:
+    """What an existing split file holds ("train 120, val 14, …") when it is kept (there, and no `overwrite`);
+    None when there is none or it is to be replaced. An unreadable one is a UserError (kept too)."""
     if not out.exists() or overwrite:
-        return
+        return None
     try:
-        held = ", ".join(f"{k} {len(v)}" for k, v in read_split(out).items())
-    except DataError:
-        held = "unreadable"
-    raise UserError(f"{out}: a split is already there ({held}); keep it, or pass --overwrite to replace it "
-                    "or --out FILE to write another")
+        return ", ".join(f"{k} {len(v)}" for k, v in read_split(out).items())
+    except DataError as exc:
+        raise UserError(f"{exc}; it is kept: --overwrite replaces it, --out FILE writes another") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,7 +54,9 @@ def run(args: argparse.Namespace) -> int:
     check_split_config(config)  # settings first: a bad value is named before any file is looked at
     out = args.out or args.hdf5_root / SPLIT_FILE
     check_output(out, (args.hdf5_root,), args.overwrite, own=is_split_file)
-    check_existing_split(out, args.overwrite)
+    if (held := existing_split(out, args.overwrite)) is not None:
+        print(f"{out}: a split is already there ({held}); kept (--overwrite replaces it, --out FILE writes another)")
+        return 0
     split, excluded = build_split(args.hdf5_root, config)
     if not args.allow_empty and (problem := empty_split_problem(split, excluded)):
         reasons = "; ".join(f"{path}: {reason}" for path, reason in list(excluded.items())[:2])

@@ -32,6 +32,17 @@ def bundled_baselines() -> dict[str, Path]:
     return {name: models[name] for name in BASELINES if name in models}
 
 
+POSE_ONLY_SUFFIX = "_pose_only"
+
+
+def pose_only_twin(checkpoint: Path) -> Path | None:
+    """The checkpoint of the model's pose-only twin (the same design trained on black frames) when one lies
+    beside it as `<model folder>_pose_only/` (models/nano → models/nano_pose_only), else None."""
+    checkpoint = Path(checkpoint)
+    twin = checkpoint.parent.with_name(checkpoint.parent.name + POSE_ONLY_SUFFIX) / checkpoint.name
+    return twin if not checkpoint.parent.name.endswith(POSE_ONLY_SUFFIX) and twin.is_file() else None
+
+
 def sample_episodes() -> list[Path]:
     """The bundled sample episodes (raw folders under recordings/sample)."""
     from touchanything.devices.episodes.episode_loader import find_raw_episodes  # imported where used: --help loads this module

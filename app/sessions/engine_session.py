@@ -33,6 +33,7 @@ from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.metrics import CONTACT_THRESHOLD
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.dashboard.dashboard_state import Playback, SessionState, SourceStatus
+from touchanything.viz.frame_facts import FrameFacts, frame_facts
 from touchanything.viz.line_plot import PLOT_SAMPLES
 
 RECENT_FRAMES = 64
@@ -58,7 +59,7 @@ class EngineSession:
         self._lock = threading.Lock()
         self._recent: dict[int, tuple[Snapshot, np.ndarray | None]] = {}
         self._snapshot: Snapshot | None = None
-        self._prediction: tuple[Prediction, np.ndarray | None] | None = None
+        self._prediction: tuple[Prediction, np.ndarray | None, FrameFacts] | None = None
         self._history = {name: deque(maxlen=PLOT_SAMPLES) for name in ("volumetric_iou", "contact_iou", "latency_ms")}
         self._stages = StageMeans()
         self._steps: deque[float] = deque(maxlen=STEP_WINDOW)
@@ -111,7 +112,7 @@ class EngineSession:
         self.frames.tick()
         self._stages.add(snapshot.stage_ms)
         if self.rerun is not None:
-            self.rerun.observe(snapshot, truth)
+            self.rerun.observe(snapshot, truth, self.threshold)
         if self.live is not None and not predict:
             self.live.skip()
         elif self.live is not None:
@@ -119,12 +120,12 @@ class EngineSession:
             self.live.submit(dataclasses.replace(snapshot, images=images))
 
     def _on_prediction(self, prediction: Prediction) -> None:
-        """Engine thread: keep the prediction, feed the metrics (frames before a seek are ignored)."""
+        """Engine thread: keep the prediction with its facts (decided once, here, for every panel and the Rerun
+        recording), feed the metrics (frames before a seek are ignored)."""
         with self._lock:
             if prediction.frame_index not in self._recent:
                 return
             snapshot, truth = self._recent[prediction.frame_index]
-            self._prediction = (prediction, truth)
             self._predictions.tick()
             self._stages.add(prediction.timings_ms)
             if "total" in prediction.timings_ms:
@@ -133,12 +134,19 @@ class EngineSession:
             if truth is not None and prediction.pressure is not None:
                 self._truth_seen = True
                 self.metrics.add(prediction.pressure, truth)
-                rolling = self.metrics.rolling()
-                self._history["volumetric_iou"].append(rolling["volumetric_iou"])
-                self._history["contact_iou"].append(rolling["contact_iou"])
+            facts = self._facts(prediction, truth)
+            if truth is not None and prediction.pressure is not None:
+                for key in ("volumetric_iou", "contact_iou"):
+                    self._history[key].append(np.nan if facts.rolling[key] is None else facts.rolling[key])
+            self._prediction = (prediction, truth, facts)
             if self.rerun is not None:
-                metrics = (self.metrics.rolling(), self.metrics.cumulative()) if self._truth_seen else (None, None)
-                self.rerun.predicted(prediction, snapshot, truth, *metrics)
+                self.rerun.predicted(prediction, snapshot, truth, facts)
+
+    def _facts(self, prediction: Prediction, truth: np.ndarray | None) -> FrameFacts:
+        """The prediction's facts at the session's threshold, with the metrics as they stand (none before any
+        ground truth)."""
+        return frame_facts(prediction.pressure, prediction.hands_predicted, truth, self.bend, self.threshold,
+                           self.metrics if self._truth_seen else None)
 
     def restart(self) -> None:
         """Forget the window, the pending pairs and the metrics (after a seek or a new session)."""
@@ -151,22 +159,24 @@ class EngineSession:
             self.live.call(lambda: self.live.engine.reset())
 
     def state(self) -> SessionState:
+        """The session now. Paused, nothing runs: the engine's rate reads 0 and its row says "paused" (not the
+        rate it had)."""
         with self._lock:
-            prediction, truth = self._prediction or (None, None)
-            snapshot, metrics = self._snapshot, self.metrics if self._truth_seen else None
+            prediction, truth, facts = self._prediction or (None, None, None)
+            snapshot, playback = self._snapshot, self.playback()
+            paused = playback is not None and playback.paused
             rows = self.source_rows(snapshot)
             if self.live is not None:
                 stats = self.live.stats
                 detail = "loading a model…" if self._loading else f"{stats.processed} processed, {self.live.engine.runtime.capture}"
-                rows.append(SourceStatus("engine", self.live.error is None, self._predictions.rate(), None,
-                                         stats.dropped, detail if self.live.error is None else f"error: {self.live.error}"))
+                detail = f"paused, {detail}" if paused else detail
+                rows.append(SourceStatus("engine", self.live.error is None, None if paused else self._predictions.rate(),
+                                         None, stats.dropped, detail if self.live.error is None else f"error: {self.live.error}"))
             return SessionState(
-                snapshot=snapshot, prediction=prediction, truth=truth,
-                rolling=metrics.rolling() if metrics else None, cumulative=metrics.cumulative() if metrics else None,
-                metric_frames=self.metrics.frames,
+                snapshot=snapshot, prediction=prediction, truth=truth, facts=facts, metric_frames=self.metrics.frames,
                 history={name: np.array(values, np.float64) for name, values in self._history.items()},
-                stage_ms=self._stages.means(), engine_fps=self._predictions.rate(), sources=tuple(rows),
-                playback=self.playback(), model=self._model_line(snapshot), message=self.message,
+                stage_ms=self._stages.means(), engine_fps=0.0 if paused else self._predictions.rate(), sources=tuple(rows),
+                playback=playback, model=self._model_line(snapshot), message=self.message,
                 recording=self.recording_status(), setting=setting_name(self.choice, self.views) if self.live else "",
                 step_p99_ms=float(np.percentile(self._steps, 99)) if len(self._steps) >= MIN_STEPS else None,
                 atlas=self.atlas, atlas_note=self.atlas_note)
@@ -188,12 +198,18 @@ class EngineSession:
         self.views = tuple(v for v in VIEW_NAMES if v in views)
 
     def set_threshold(self, threshold: float) -> None:
-        """Contact threshold for the metrics and indicators (official 0.1); the metrics restart."""
+        """Contact threshold for the metrics and indicators (official 0.1); the metrics and their history
+        restart, and the shown prediction's facts are decided again at the new threshold."""
         if not 0.0 < threshold < 1.0:
             raise UserError(f"contact threshold must lie in (0, 1), got {threshold}")
         with self._lock:
             self.threshold = threshold
             self.metrics = RunningMetrics(self.bend, threshold=threshold)
+            for key in ("volumetric_iou", "contact_iou"):
+                self._history[key].clear()
+            if self._prediction is not None:
+                prediction, truth, _ = self._prediction
+                self._prediction = (prediction, truth, self._facts(prediction, truth))
 
     def models(self) -> tuple[str, ...]:
         names = tuple(bundled_models())

@@ -21,8 +21,9 @@ from touchanything.devices.episodes.lerobot_checks import metadata_problems
 from touchanything.devices.episodes.lerobot_episode import find_lerobot_episodes
 from touchanything.devices.episodes.raw_episode import is_raw_episode
 from touchanything.devices.errors import DataError, UserError, failure_line
-from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
+from touchanything.devices.snapshot import HANDS, TRACKER_ROLES, VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.devices.view_sets import VIEW_LABELS, view_set_name
 from touchanything.inference.evaluation.metrics import contact_frames
 
 ROOT_PROBLEMS_SHOWN = 3
@@ -62,8 +63,7 @@ def episode_lines(episode: Episode) -> list[str]:
     name = "plain video" if is_plain_video(episode) else f"{episode.scene}/{episode.task}/{episode.trajectory_id}"
     lines = [f"episode   {name}  ({episode.path})",
              f"frames    {episode.num_frames} at {episode.fps:g} fps ({seconds:.1f} s)"]
-    views = [f"{v} {s.width}×{s.height} ({s.num_frames} frames)" for v, s in episode.views.items()]
-    lines.append("views     " + ("; ".join(views) or "none"))
+    lines.append("views     " + _views_text(episode))
     for name in ("wilor", "rokoko"):
         hands = episode.hands(name)
         if hands is not None:
@@ -75,6 +75,16 @@ def episode_lines(episode: Episode) -> list[str]:
     lines += _pressure_lines(episode)
     lines.append(f"problems  {len(episode.problems) or 'none'}")
     return lines + _problem_lines(episode.problems, "  ")
+
+
+def _views_text(episode: Episode) -> str:
+    """"ego+left: head camera 640×480 (300 frames); left wrist camera 640×480 (300 frames)": the view set's id
+    (what `--views` takes), then each view by its label."""
+    views = {v: episode.views[v] for v in VIEW_NAMES if v in episode.views}
+    if not views:
+        return "none"
+    sizes = [f"{VIEW_LABELS[v]} {source.width}×{source.height} ({source.num_frames} frames)" for v, source in views.items()]
+    return f"{view_set_name(tuple(views))}: " + "; ".join(sizes)
 
 
 def _problem_lines(problems: list[str], indent: str, limit: int | None = None) -> list[str]:
@@ -108,10 +118,11 @@ def dataset_lines(root: Path, verify: bool = False) -> tuple[list[str], int]:
         try:
             with open_episode(path) as ep:
                 total += ep.num_frames
-                pose = _percent(ep.wilor.valid.any(axis=1)) if ep.wilor is not None else "n/a"
+                pose = (f"left {_percent(ep.wilor.valid[:, 0])}, right {_percent(ep.wilor.valid[:, 1])}"
+                        if ep.wilor is not None else "none")
                 contact = _percent(contact_frames(ep.pressure.grids, TactileLayout.default().bend)) if ep.pressure else "n/a"
-                lines.append(f"  {name}: {ep.num_frames} frames, views {'+'.join(ep.view_names) or 'none'}, "
-                             f"pose valid {pose}, contact {contact}, problems {len(ep.problems)}")
+                lines.append(f"  {name}: {ep.num_frames} frames, views {view_set_name(ep.view_names) or 'none'}, "
+                             f"wilor poses {pose}, contact {contact}, problems {len(ep.problems)}")
                 problems = [p.removeprefix(f"{root}{os.sep}") for p in ep.problems]
                 lines += _problem_lines(problems, "      ", ROOT_PROBLEMS_SHOWN)
         except Exception as exc:  # noqa: BLE001 - one trajectory that cannot be read never stops the others

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import itertools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,8 +21,8 @@ from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.comparison_video import write_comparison_video
-from touchanything.viz.contact import hand_contact
-from touchanything.viz.replay_frame import ReplayFrameRenderer, metric_text
+from touchanything.viz.frame_facts import FrameFacts, Metrics, frame_facts, metric_text
+from touchanything.viz.replay_frame import ReplayFrameRenderer
 from touchanything.viz.rerun_recording import RerunRecording
 
 
@@ -29,34 +30,38 @@ from touchanything.viz.rerun_recording import RerunRecording
 class ReplaySummary:
     """frames written; predicted: frames with a prediction for at least one hand; no_pose: frames the engine
     answered without a valid hand pose to predict from (no contact in the metrics); metrics: cumulative
-    official metrics (None without ground truth); latency_ms / step_ms: per-prediction latency and engine
-    step times; hands: frames with a valid pose per hand [left, right]; pose_source: where the poses came
-    from; pose_ms: the hand-pose estimator's time per frame (camera poses only); lamps_agree / lamps_shown:
-    per hand [left, right], the predicted frames with ground truth whose predicted and measured contact lamps
-    agree, and all of them."""
+    official metrics of the last frame's facts (None without ground truth; a value None where undefined);
+    latency_ms / step_ms: per-prediction latency and engine step times; hands: frames with a valid pose per hand
+    [left, right]; pose_source: where the poses came from; pose_ms: the hand-pose estimator's time per frame
+    (camera poses only); lamps_agree / lamps_judged: per hand [left, right], the frames whose predicted and
+    measured contact lamps agree, and those where both were known (the hand predicted and measured)."""
 
     frames: int = 0
     predicted: int = 0
     no_pose: int = 0
-    metrics: dict[str, float] | None = None
+    metrics: Metrics | None = None
     latency_ms: list[float] = field(default_factory=list)
     step_ms: list[float] = field(default_factory=list)
     hands: list[int] = field(default_factory=lambda: [0, 0])
     pose_source: str = ""
     pose_ms: list[float] = field(default_factory=list)
     lamps_agree: list[int] = field(default_factory=lambda: [0, 0])
-    lamps_shown: int = 0
+    lamps_judged: list[int] = field(default_factory=lambda: [0, 0])
 
-    def add_lamps(self, predicted: np.ndarray, measured: np.ndarray) -> None:
-        """Count one frame's (2,) bool contact lamps, predicted against measured."""
-        self.lamps_agree = [n + int(p == m) for n, p, m in zip(self.lamps_agree, predicted, measured)]
-        self.lamps_shown += 1
+    def add_lamps(self, facts: FrameFacts) -> None:
+        """Count one frame's contact lamps: per hand, whether they agree, where both are known."""
+        for h, hand in enumerate(facts.hands):
+            if hand.agree is not None:
+                self.lamps_judged[h] += 1
+                self.lamps_agree[h] += hand.agree
 
     def lamp_line(self) -> str:
-        """"contact   lamps agree on 91.2 % of the predicted frames (left 90.1 %, right 92.3 %; 300 frames)"."""
-        left, right = (100 * n / self.lamps_shown for n in self.lamps_agree)
-        return (f"contact   lamps agree on {(left + right) / 2:.1f} % of the predicted frames (left {left:.1f} %, "
-                f"right {right:.1f} %; {self.lamps_shown} frames)")
+        """"contact   lamps agree on 91.2 % (left 90.1 % of 280 frames, right 92.3 % of 300; where a hand was
+        predicted and measured)": the overall share pools both hands' frames."""
+        share = [f"{100 * n / d:.1f} %" if d else "n/a" for n, d in zip(self.lamps_agree, self.lamps_judged)]
+        overall = 100 * sum(self.lamps_agree) / sum(self.lamps_judged)
+        return (f"contact   lamps agree on {overall:.1f} % (left {share[0]} of {self.lamps_judged[0]} frames, right "
+                f"{share[1]} of {self.lamps_judged[1]}; where a hand was predicted and measured)")
 
     def add_pose(self, snapshot: Snapshot) -> None:
         self.hands = [n + int(v) for n, v in zip(self.hands, snapshot.joints_valid)]
@@ -83,13 +88,32 @@ class ReplaySummary:
         else:
             out.append("metrics   " + ", ".join(f"{k} {metric_text(v)}" for k, v in self.metrics.items()
                                                 if k != "mae_left" and k != "mae_right"))
-        if self.lamps_shown and self.predicted:
+        if sum(self.lamps_judged):
             out.append(self.lamp_line())
         if self.step_ms:
             step, latency = np.percentile(self.step_ms, [50, 99]), np.percentile(self.latency_ms, [50, 99])
             out.append(f"engine    {step[0]:.1f} ms per frame (p99 {step[1]:.1f}); latency p50 {latency[0]:.1f} ms, "
                        f"p99 {latency[1]:.1f} ms")
         return out
+
+
+def tour_lines(summaries: list[ReplaySummary]) -> list[str]:
+    """The episodes of a tour together: each official metric's mean over the episodes that define it (the
+    official overall is a mean over trajectories), and the contact lamps of every episode pooled."""
+    scored = [s.metrics for s in summaries if s.metrics is not None and s.predicted]
+    means = {}
+    for key in dict.fromkeys(k for metrics in scored for k in metrics if k not in ("mae_left", "mae_right")):
+        values = [m[key] for m in scored if m.get(key) is not None]
+        means[key] = float(np.mean(values)) if values else None
+    out = [f"overall   {len(summaries)} episodes, {sum(s.frames for s in summaries)} frames"]
+    if means:
+        out.append(f"metrics   mean over the {len(scored)} episodes with a prediction and ground truth: "
+                   + ", ".join(f"{k} {metric_text(v)}" for k, v in means.items()))
+    pooled = ReplaySummary(lamps_agree=[sum(s.lamps_agree[h] for s in summaries) for h in range(2)],
+                           lamps_judged=[sum(s.lamps_judged[h] for s in summaries) for h in range(2)])
+    if sum(pooled.lamps_judged):
+        out.append(pooled.lamp_line())
+    return out
 
 
 def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: ReplaySummary,
@@ -116,20 +140,22 @@ def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: Replay
                 summary.latency_ms.append(prediction.latency_ms)
                 if "total" in prediction.timings_ms:
                     summary.step_ms.append(prediction.timings_ms["total"])
-            shown = latest.pressure if latest is not None and latest.frame_index == snapshot.frame_index else None
+            this = latest if latest is not None and latest.frame_index == snapshot.frame_index else None
+            shown = None if this is None else this.pressure
             truth = gt[snapshot.frame_index] if gt is not None else None
             if shown is not None:
-                summary.predicted += any(latest.hands_predicted)
-                summary.no_pose += not any(latest.hands_predicted)
+                summary.predicted += any(this.hands_predicted)
+                summary.no_pose += not any(this.hands_predicted)
                 if metrics is not None:
                     metrics.add(shown, truth)
-                    summary.add_lamps(hand_contact(shown, bend), hand_contact(truth, bend))
+            facts = frame_facts(shown, None if this is None else this.hands_predicted, truth, bend, metrics=metrics)
+            summary.add_lamps(facts)
+            summary.metrics = facts.cumulative
             summary.frames += 1
             if rerun is not None:
-                _log_frame(rerun, episode, snapshot, truth, latest if shown is not None else None, metrics, bend)
+                _log_frame(rerun, episode, snapshot, truth, this if shown is not None else None, facts)
             progress(snapshot.frame_index)
-            yield None if renderer is None else renderer.render(snapshot, truth, shown, latest, metrics)
-    summary.metrics = metrics.cumulative() if metrics is not None else None
+            yield None if renderer is None else renderer.render(snapshot, truth, shown, latest, facts)
 
 
 def log_episode_videos(rerun: RerunRecording, episode: Episode, views: tuple[str, ...]) -> None:
@@ -140,28 +166,35 @@ def log_episode_videos(rerun: RerunRecording, episode: Episode, views: tuple[str
 
 
 def _log_frame(rerun: RerunRecording, episode: Episode, snapshot: Snapshot, truth: np.ndarray | None,
-               prediction: Prediction | None, metrics: RunningMetrics | None, bend: np.ndarray) -> None:
-    """One replayed frame into the recording: what the episode holds, and the prediction of this frame."""
+               prediction: Prediction | None, facts: FrameFacts) -> None:
+    """One replayed frame into the recording: what the episode holds, and the prediction of this frame, with
+    the frame's facts."""
     time_s = float(episode.timestamps_us[snapshot.frame_index]) / 1e6
     rerun.log_observation(snapshot.frame_index, time_s, snapshot.images, snapshot.joints, snapshot.joints_valid, truth,
-                          hand_contact(truth, bend), snapshot.trackers)
+                          facts, snapshot.trackers)
     if prediction is not None:
-        rerun.log_prediction(snapshot.frame_index, time_s, prediction.pressure, hand_contact(prediction.pressure, bend),
-                             snapshot.joints, snapshot.joints_valid, truth, prediction.latency_ms,
-                             prediction.timings_ms.get("total"), metrics and metrics.rolling(), metrics and metrics.cumulative())
+        rerun.log_prediction(snapshot.frame_index, time_s, prediction.pressure, facts, snapshot.joints,
+                             snapshot.joints_valid, truth, prediction.latency_ms, prediction.timings_ms.get("total"))
 
 
-def export_replay(source: ReplaySource, engine: StreamingEngine, out: Path | None,
+def export_replay(sources: list[ReplaySource], engine: StreamingEngine, out: Path | None,
                   progress: Callable[[int], None] = lambda frame: None, hand3d: bool = False,
-                  rerun: RerunRecording | None = None, caption: tuple[str, ...] = (), setting: str = "") -> ReplaySummary:
-    """Write the comparison video of the source's whole episode to `out` (H.264 MP4; None: no video) with the
-    3D hands panel when `hand3d`, `caption` (what the model is, a warning) under the predicted maps, `setting`
-    (the engine setting's name) in the footer, and the Rerun recording when given; return the summary."""
-    summary = ReplaySummary()
+                  rerun: RerunRecording | None = None, captions: list[tuple[str, ...]] | None = None,
+                  setting: str = "") -> list[ReplaySummary]:
+    """Write the comparison video of the sources' whole episodes, one after the other, to `out` (H.264 MP4; None:
+    no video) with the 3D hands panel when `hand3d`, each episode's `captions` (what the model is, a warning,
+    which episode) under the predicted maps, `setting` (the engine setting's name) in the footer, and the Rerun
+    recording when given (one source); return each episode's summary (the engine starts afresh per episode)."""
+    summaries = [ReplaySummary() for _ in sources]
+    captions = captions or [()] * len(sources)
     if out is None:
-        for _ in replay_frames(source, engine, summary, progress, rerun=rerun):
-            pass
-        return summary
-    renderer = ReplayFrameRenderer(source.episode.num_frames, TactileLayout.default().bend, hand3d, caption, setting)
-    write_comparison_video(out, replay_frames(source, engine, summary, progress, renderer, rerun))
-    return summary
+        for source, summary in zip(sources, summaries):
+            for _ in replay_frames(source, engine, summary, progress, rerun=rerun):
+                pass
+        return summaries
+    frames = itertools.chain.from_iterable(
+        replay_frames(source, engine, summary, progress,
+                      ReplayFrameRenderer(source.episode.num_frames, hand3d, caption, setting), rerun)
+        for source, summary, caption in zip(sources, summaries, captions))
+    write_comparison_video(out, frames)
+    return summaries

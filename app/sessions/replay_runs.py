@@ -3,7 +3,8 @@ real time) or into a comparison video (every frame, headless). The poses come fr
 or, for a plain video, are estimated from its frames (`pose_source_for`)."""
 from __future__ import annotations
 
-from collections.abc import Iterable
+import contextlib
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 from tqdm import tqdm
@@ -17,7 +18,7 @@ from touchanything.app.sessions.engine_choice import (
     setting_name,
 )
 from touchanything.app.sessions.episode_summary import episode_lines
-from touchanything.app.sessions.replay_export import ReplaySummary, export_replay, log_episode_videos
+from touchanything.app.sessions.replay_export import ReplaySummary, export_replay, log_episode_videos, tour_lines
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.app.sessions.rerun_output import episode_name, finish, open_recording, session_properties
 from touchanything.app.sessions.rerun_sink import RerunSink
@@ -33,42 +34,52 @@ from touchanything.viz.display import display_problem
 from touchanything.viz.rerun_recording import RerunTarget
 
 
-def replay_to_video(path: Path, choice: ModelChoice, views: tuple[str, ...], out: Path | None, hand3d: bool = False,
-                    rerun: RerunTarget | None = None) -> ReplaySummary:
-    """Export one episode into the comparison video `out` (None: none; `hand3d`: with the 3D hands panel) and
-    the Rerun recording `rerun`; prints the episode, the summary and where the outputs are. The outputs were
-    checked by the caller (`check_video_output`, `rerun_target`)."""
+def replay_to_video(paths: Sequence[Path], choice: ModelChoice, views: tuple[str, ...], out: Path | None,
+                    hand3d: bool = False, rerun: RerunTarget | None = None) -> list[ReplaySummary]:
+    """Export the episodes, one after the other, into the comparison video `out` (None: none; `hand3d`: with the
+    3D hands panel) and the Rerun recording `rerun` (one episode); prints each episode and its summary, for
+    several the overall one, and where the outputs are. The outputs were checked by the caller
+    (`check_video_output`, `rerun_target`)."""
     engine = build_engine(choice, views)
-    with open_episode(path) as episode:
-        _require_ego(path, episode)
-        pose_source = pose_source_for(episode)
-        source = ReplaySource(episode, ReplayConfig(speed=None, views=views, pose_source=pose_source))
-        caption = tuple(line for line in (model_name(choice), illustrative_note(choice, pose_source == "camera")) if line)
-        print("\n".join(episode_lines(episode)))
-        known = len(episode.problems)
-        recording = rerun and open_recording(rerun, f"replay {episode_name(episode)}", session_properties(choice, engine, episode))
+    with contextlib.ExitStack() as opened:
+        episodes = [opened.enter_context(open_episode(path)) for path in paths]
+        for path, episode in zip(paths, episodes):
+            _require_ego(path, episode)
+        sources = [ReplaySource(e, ReplayConfig(speed=None, views=views, pose_source=pose_source_for(e))) for e in episodes]
+        camera = any(pose_source_for(e) == "camera" for e in episodes)
+        model = tuple(line for line in (model_name(choice), illustrative_note(choice, camera)) if line)
+        tour = [f"episode {k + 1} of {len(paths)}: {episode_name(e)}" for k, e in enumerate(episodes)] if len(paths) > 1 else []
+        captions = [model + ((tour[k],) if tour else ()) for k in range(len(paths))]
+        for k, episode in enumerate(episodes):
+            print("\n".join(([f"--- {tour[k]}"] if tour else []) + episode_lines(episode)))
+        known = [len(e.problems) for e in episodes]
+        recording = rerun and open_recording(rerun, f"replay {episode_name(episodes[0])}",
+                                             session_properties(choice, engine, episodes[0]))
         try:
-            with tqdm(total=episode.num_frames, unit="frame", desc="replay") as bar:
-                summary = export_replay(source, engine, out, lambda frame: bar.update(1), hand3d, recording, caption,
-                                        setting_name(choice, views))
+            with tqdm(total=sum(e.num_frames for e in episodes), unit="frame", desc="replay") as bar:
+                summaries = export_replay(sources, engine, out, lambda frame: bar.update(1), hand3d, recording, captions,
+                                          setting_name(choice, views))
         except BaseException:
             if recording is not None:
                 recording.close()  # what was logged stays readable
             raise
-        found = episode.problems[known:]  # what reading the frames found (a damaged chunk, an undecodable frame)
-    if found:
-        print(f"problems  {len(found)} more found while replaying")
-        print("\n".join(f"  - {problem}" for problem in found))
+        for k, episode in enumerate(episodes):
+            if found := episode.problems[known[k]:]:  # what reading the frames found (a damaged chunk, an undecodable frame)
+                print(f"problems  {len(found)} more found while replaying" + (f" {episode_name(episode)}" if tour else ""))
+                print("\n".join(f"  - {problem}" for problem in found))
     print(f"model     {model_label(choice, engine)}, {engine.runtime.capture}")
     print(f"setting   {setting_name(choice, views)}")
-    if len(caption) > 1:
-        print(f"note      {caption[1]}")
-    print("\n".join(summary.lines()))
+    if len(model) > 1:
+        print(f"note      {model[1]}")
+    for k, summary in enumerate(summaries):
+        print("\n".join(([f"--- {tour[k]}"] if tour else []) + summary.lines()))
+    if tour:
+        print("\n".join(["--- all episodes", *tour_lines(summaries)]))
     if out is not None:
         print(f"video     {out}")
     if recording is not None:
         finish(recording)
-    return summary
+    return summaries
 
 
 def check_video_output(out: Path, inputs: Iterable[Path | None], overwrite: bool) -> None:
@@ -81,15 +92,18 @@ def check_video_output(out: Path, inputs: Iterable[Path | None], overwrite: bool
 
 def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...], max_frames: int | None = None,
                         screenshot: Path | None = None, rerun: RerunTarget | None = None,
-                        loop: bool = False, atlas: Path | None = None) -> Dashboard:
+                        loop: bool = False, atlas: Path | None = None, tour: Sequence[Path] = ()) -> Dashboard:
     """Play the episode in the dashboard until its window closes (or `max_frames` were rendered; then
     `screenshot` is saved); returns the closed dashboard (its stats, screenshots and session). A model
     that fails to load is reported in the dashboard, which then shows the cameras and the measured
     pressure only. `rerun`: everything shown also goes into that Rerun recording. `loop`: play the
     episode over and over (else hold at its end). `atlas`: the atlas the atlas panel shows (None: the
-    committed one)."""
-    with open_episode(path) as episode:
-        _require_ego(path, episode)
+    committed one). `tour`: more episodes, played after this one in turn, over and over (`ReplaySession`; not
+    with `rerun`, whose recording holds one episode)."""
+    with contextlib.ExitStack() as opened:
+        episode, *others = [opened.enter_context(open_episode(p)) for p in (path, *tour)]
+        for where, each in zip((path, *tour), (episode, *others)):
+            _require_ego(where, each)
         if problem := display_problem():
             raise UserError(f"cannot open the dashboard: {problem}; use --headless to write a video instead")
         try:
@@ -97,7 +111,7 @@ def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...],
         except UserError as exc:
             engine, message = None, f"no prediction: {exc}"
             print(message)
-        session = ReplaySession(episode, engine, choice, message, pose_source_for(episode), loop)
+        session = ReplaySession(episode, engine, choice, message, pose_source_for(episode), loop, others)
         session.set_views(views)
         if atlas is not None:
             session.use_atlas(atlas)

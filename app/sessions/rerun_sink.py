@@ -15,7 +15,8 @@ import numpy as np
 from touchanything.devices.snapshot import Snapshot
 from touchanything.inference.engine.live_engine import ENGINE_NICENESS, lower_priority
 from touchanything.inference.engine.prediction import Prediction
-from touchanything.viz.contact import hand_contact
+from touchanything.inference.evaluation.metrics import CONTACT_THRESHOLD
+from touchanything.viz.frame_facts import FrameFacts, frame_facts
 from touchanything.viz.rerun_recording import RerunRecording
 
 MAX_PENDING = 16
@@ -57,20 +58,22 @@ class RerunSink:
             self._queue.append(job)
             self._wake.notify()
 
-    def observe(self, snapshot: Snapshot, truth: np.ndarray | None) -> None:
-        """The rig's snapshot and its measured pressure (2, 21, 21) or None."""
+    def observe(self, snapshot: Snapshot, truth: np.ndarray | None, threshold: float = CONTACT_THRESHOLD) -> None:
+        """The rig's snapshot and its measured pressure (2, 21, 21) or None, whose facts (contact at `threshold`)
+        the logging thread derives."""
         def job() -> None:
+            facts = frame_facts(None, None, truth, self.bend, threshold)
             self.recording.log_observation(snapshot.frame_index, self.time_of(snapshot), snapshot.images, snapshot.joints,
-                                           snapshot.joints_valid, truth, hand_contact(truth, self.bend), snapshot.trackers)
+                                           snapshot.joints_valid, truth, facts, snapshot.trackers)
         self._put(job)
 
-    def predicted(self, prediction: Prediction, snapshot: Snapshot, truth: np.ndarray | None,
-                  rolling: dict[str, float] | None, cumulative: dict[str, float] | None) -> None:
-        """The engine's prediction of `snapshot`'s frame, its measured pressure and the running metrics."""
+    def predicted(self, prediction: Prediction, snapshot: Snapshot, truth: np.ndarray | None, facts: FrameFacts) -> None:
+        """The engine's prediction of `snapshot`'s frame, its measured pressure and the prediction's facts (the
+        same record the dashboard shows)."""
         def job() -> None:
-            self.recording.log_prediction(prediction.frame_index, self.time_of(snapshot), prediction.pressure,
-                                          hand_contact(prediction.pressure, self.bend), snapshot.joints, snapshot.joints_valid,
-                                          truth, prediction.latency_ms, prediction.timings_ms.get("total"), rolling, cumulative)
+            self.recording.log_prediction(prediction.frame_index, self.time_of(snapshot), prediction.pressure, facts,
+                                          snapshot.joints, snapshot.joints_valid, truth, prediction.latency_ms,
+                                          prediction.timings_ms.get("total"))
         self._put(job)
 
     def _run(self) -> None:

@@ -13,7 +13,7 @@ from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.output_safety import temporary_path
 from touchanything.devices.snapshot import TRACKER_ROLES
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
-from touchanything.viz.contact import hand_contact
+from touchanything.viz.frame_facts import frame_facts
 from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
 
 
@@ -50,14 +50,16 @@ class TrajectoryRecordings:
         valid = hands.valid[i] if hands is not None else np.zeros(2, bool)
         trackers = {} if episode.trackers is None else {role: episode.trackers.poses[i, r] for r, role in enumerate(TRACKER_ROLES)
                                                         if episode.trackers.valid[i, r]}
-        recording.log_observation(i, time_s, images, joints, valid, truth, hand_contact(truth, self.bend), trackers)
         shown = np.where(np.isnan(truth), np.nan, predicted)
         if not np.isfinite(shown).any():
-            recording.log_prediction(i, time_s, None, None, joints, valid, truth, None, None, None, None)
+            facts = frame_facts(None, None, truth, self.bend)
+            recording.log_observation(i, time_s, images, joints, valid, truth, facts, trackers)
+            recording.log_prediction(i, time_s, None, facts, joints, valid, truth, None, None)
             return
         metrics.add(shown, truth)
-        recording.log_prediction(i, time_s, shown, hand_contact(shown, self.bend), joints, valid, truth, None, None,
-                                 metrics.rolling(), metrics.cumulative())
+        facts = frame_facts(shown, None, truth, self.bend, metrics=metrics)
+        recording.log_observation(i, time_s, images, joints, valid, truth, facts, trackers)
+        recording.log_prediction(i, time_s, shown, facts, joints, valid, truth, None, None)
 
     def close(self) -> None:
         """Merge the parts into the output (renamed into place); a failure leaves no part behind."""

@@ -117,7 +117,7 @@ def summary_line(results: list[ConversionResult], wall_seconds: float) -> str:
 
 def write_reports(out_root: Path, results: list[ConversionResult], wall_seconds: float) -> None:
     """`conversion_report.txt` (`summary_line`, then the status per trajectory) and `quality_report.txt`
-    (problems, quality; a ratio the raw folder does not give reads "not measured")."""
+    (problems, quality; ratios the raw folder does not give read "not measured")."""
     lines = [summary_line(results, wall_seconds), ""]
     for r in results:
         detail = r.error if r.status == "failed" else f"{r.frames} frames, {r.seconds:.1f} s of work"
@@ -128,13 +128,16 @@ def write_reports(out_root: Path, results: list[ConversionResult], wall_seconds:
         if r.status != "converted":
             continue
         q = r.quality
-        quality.append(f"{r.output}: wilor valid {q.get('wilor_valid_ratio', 0):.1%}, duplicate wrist frames "
-                       f"left {_measured(q.get('left', -1))} right {_measured(q.get('right', -1))}")
+        quality.append(f"{r.output}: wilor valid {q.get('wilor_valid_ratio', 0):.1%}, "
+                       f"{duplicate_frames(q.get('left', -1), q.get('right', -1))}")
         quality += [f"  problem: {p}" for p in r.problems]
     write_text(out_root / QUALITY_REPORT, "\n".join(quality) + "\n")
 
 
-def _measured(ratio: float) -> str:
-    """A duplicate-frame ratio as text; negative (the official "unknown", no `quality_issues.json`) → "not
-    measured"."""
-    return f"{ratio:.2f}" if ratio >= 0 else "not measured"
+def duplicate_frames(left: float, right: float) -> str:
+    """The wrist cameras' duplicate-frame ratios as text; a negative ratio (the official "unknown": no
+    `quality_issues.json`) is not measured."""
+    if left < 0 and right < 0:
+        return "duplicate wrist frames not measured (no quality_issues.json)"
+    return "duplicate wrist frames " + ", ".join(f"{hand} {ratio:.1%}" if ratio >= 0 else f"{hand} not measured"
+                                                 for hand, ratio in (("left", left), ("right", right)))

@@ -20,6 +20,8 @@ from touchanything.devices.sim.catalogue import SCENES, UNSEEN_OBJECTS
 from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_episode
 from touchanything.devices.sim.episode_stats import CAMERAS, EpisodeStats
 from touchanything.devices.sim.pose_ambiguity import pose_statistics
+from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.view_sets import VIEW_LABELS
 
 MAX_SECONDS = 3600.0
 """The longest episode (an hour: 108,000 frames of three views, tens of GB as raw video)."""
@@ -153,8 +155,9 @@ def card_markdown(card: dict) -> str:
               "Of the tactile points in contact, the share each camera sees (inside the image, line of sight not "
               "blocked by a hand, the table or another object).", "",
               "| camera | contact points | visible | own hand only |", "|---|---|---|---|"]
+    labels = dict(zip(CAMERAS, (VIEW_LABELS[view] for view in VIEW_NAMES)))  # the JSON keeps the files' camera names
     for camera, v in card["contact_visibility"].items():
-        lines.append(f"| {camera} | {v['contact_points']} | {percent(v['share'])} | {percent(v.get('own_hand_share'))} |")
+        lines.append(f"| {labels[camera]} | {v['contact_points']} | {percent(v['share'])} | {percent(v.get('own_hand_share'))} |")
     return "\n".join(lines + _pose_markdown(card)) + "\n"
 
 

@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.devices.view_sets import view_set_name
 from touchanything.inference.engine.engine_runtime import Runtime
 from touchanything.inference.engine.onnx_export import export_onnx
 from touchanything.inference.engine.streaming_engine import StreamingEngine
@@ -42,12 +43,15 @@ PER_TRAJECTORY_METRICS = ("volumetric_iou", "contact_iou", "temporal_accuracy", 
 
 
 def interleaved_latency(engines: dict[BenchSetting, StreamingEngine], clip: list[Snapshot], rounds: int,
-                        per_round: int) -> dict[BenchSetting, tuple[np.ndarray, float]]:
-    """Per-frame step times (ms) and peak resident MB per setting; round 0 warms up and is discarded."""
+                        per_round: int, progress=lambda message: None) -> dict[BenchSetting, tuple[np.ndarray, float]]:
+    """Per-frame step times (ms) and peak resident MB per setting; round 0 warms up and is discarded; `progress`
+    after each round."""
     times = {s: [] for s in engines}
     peaks = {s: 0.0 for s in engines}
     counters = {s: 0 for s in engines}
     for round_index in range(rounds + 1):
+        if round_index:
+            progress(f"  latency round {round_index}/{rounds}")
         for setting, engine in engines.items():
             for _ in range(per_round):
                 frame = clip[counters[setting] % len(clip)]
@@ -111,7 +115,7 @@ def setting_row(setting: BenchSetting, runtime: Runtime, checkpoint_sha256: str 
     return {"setting": setting.name(), "model": setting.model, "checkpoint_sha256": checkpoint_sha256,
             "runtime": setting.runtime, "precision": setting.precision,
             "device": device_label(runtime.device), "gpu_name": gpu, "capture": runtime.capture,
-            "views": "+".join(setting.views), "rate": setting.rate, "output": setting.output,
+            "views": view_set_name(setting.views), "rate": setting.rate, "output": setting.output,
             "invalid_hands": setting.invalid_hands, "blank": setting.blank,
             "threads": setting.engine_config(None).compute_threads(), "lookahead_ms": setting.lookahead_ms,
             "p50_ms": None, "p99_ms": None, "mean_ms": None, "latency_frames": 0, "trajectories": 0,
@@ -154,7 +158,7 @@ def bench_model(name: str, model: TactileModel, held_out: HeldOut | None, clip: 
         accuracy = (model_accuracy(model, checkpoint, settings, engines, onnx_dir, held_out, progress)
                     if held_out is not None else ModelAccuracy([], [], {}, []))
         progress(f"{name}: interleaved latency ({plan.rounds} rounds × {plan.per_round} frames per setting)")
-        latency = interleaved_latency(engines, clip, plan.rounds, plan.per_round)
+        latency = interleaved_latency(engines, clip, plan.rounds, plan.per_round, progress)
     rows = []
     for setting in settings:
         runtime = engines[dataclasses.replace(setting, blank=False)].runtime

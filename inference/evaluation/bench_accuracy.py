@@ -134,6 +134,7 @@ def model_accuracy(model: TactileModel, checkpoint: Path | None, settings: list[
     worker processes that load `checkpoint` and build their own engines (the ONNX graphs from `onnx_dir`)."""
     size = model.config.image_size
     if held_out.workers <= 1:
+        progress(f"reading {len(held_out.pairs)} held-out trajectories")
         episodes, failures = load_episodes(held_out.pairs, size, held_out.frames)
         return ModelAccuracy([e.name for e in episodes], [e.split for e in episodes],
                              settings_accuracy(settings, engines, episodes, progress), failures)
@@ -163,11 +164,12 @@ def _worker(job) -> WorkerPart:
     engines = {s: StreamingEngine(model, dataclasses.replace(s.engine_config(onnx_dir if s.runtime == "onnx" else None),
                                                              threads=threads))
                for s in settings if not s.blank}
-    episodes, failures = load_episodes(pairs, size, frames)
-    where = {Path(path): position for position, (path, _) in enumerate(pairs)}
-
     def progress(message: str) -> None:
         print(f"  [{tag}] {message}", file=sys.stderr, flush=True)
+
+    progress(f"reading {len(pairs)} trajectories")
+    episodes, failures = load_episodes(pairs, size, frames)
+    where = {Path(path): position for position, (path, _) in enumerate(pairs)}
 
     return ([where[e.path] for e in episodes], [e.name for e in episodes], [e.split for e in episodes],
             settings_accuracy(settings, engines, episodes, progress), failures)

@@ -95,21 +95,26 @@ def model_axis_checks(rows: list[dict], base: str, comparisons: list[dict]) -> l
 def _fmt(value, digits: int = 3) -> str:
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "n/a"
-    return f"{value:.{digits}f}" if isinstance(value, float) else str(value)
+    return _rounded(value, digits) if isinstance(value, float) else str(value)
+
+
+def _rounded(value: float, digits: int = 3, sign: str = "") -> str:
+    """`value` to `digits` places, never "-0.000" (a tiny negative rounds to zero, shown unsigned or "+")."""
+    return f"{round(value, digits) + 0.0:{sign}.{digits}f}"
 
 
 def _with_interval(value, interval) -> str:
     """"0.552 [0.531, 0.573]", or the value alone without an interval."""
     if not interval or any(v is None or math.isnan(v) for v in interval):
         return _fmt(value)
-    return f"{_fmt(value)} [{interval[0]:.3f}, {interval[1]:.3f}]"
+    return f"{_fmt(value)} [{_rounded(interval[0])}, {_rounded(interval[1])}]"
 
 
 def _signed(entry: list[float]) -> str:
     mean, low, high = entry
     if any(v is None or math.isnan(v) for v in entry):
         return "n/a"
-    return f"{mean:+.3f} [{low:+.3f}, {high:+.3f}]"
+    return f"{_rounded(mean, sign='+')} [{_rounded(low, sign='+')}, {_rounded(high, sign='+')}]"
 
 
 def held_out_line(record: dict) -> str:

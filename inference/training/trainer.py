@@ -23,6 +23,7 @@ from tqdm import tqdm
 
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, read_split
 from touchanything.devices.errors import UserError
+from touchanything.devices.view_sets import view_set_name
 from touchanything.inference.model.checkpoint import build_model, load_state, model_state, read_checkpoint, save_checkpoint
 from touchanything.inference.model.model_config import SPAN
 from touchanything.inference.model.torch_device import join_process_group, resolve_device
@@ -43,7 +44,7 @@ class TrainingError(UserError):
 @dataclass
 class TrainResult:
     """Per-epoch mean losses, the best validation loss, skipped empty-mask batches, and how often each
-    set of views reached the encoder."""
+    set of views (by its view-set id, `ego+left`) reached the encoder."""
 
     train_loss: list[float] = field(default_factory=list)
     val_loss: list[float] = field(default_factory=list)
@@ -199,7 +200,7 @@ class Trainer:
                 self.result.skipped_batches += 1
                 continue
             pred = self._forward(batch, self.cache)
-            self.result.view_sets["+".join(self.model.last_kept)] += 1
+            self.result.view_sets[view_set_name(tuple(self.model.last_kept))] += 1
             loss = tactile_loss(pred, self._to_device(batch["target"]), mask, self.config.training.loss)
             self._check_loss(loss, epoch, step, batch)
             self.optimizer.zero_grad(set_to_none=True)

@@ -24,15 +24,13 @@ import numpy as np
 from touchanything.devices.errors import UserError
 from touchanything.devices.rate_meter import RateMeter
 from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.viz.contact import hand_contact
 from touchanything.viz.dashboard.atlas_panel import AtlasPanel
 from touchanything.viz.dashboard.dashboard_controls import Tables, build_controls, build_tables
 from touchanything.viz.dashboard.dashboard_drawn import ContactLamps, HistoryPlots
 from touchanything.viz.dashboard.dashboard_panels import blank, camera_panel, pressure_views
 from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState
 from touchanything.viz.display import display_problem
-from touchanything.viz.pressure_panel import MAP_GAP, maps_width
+from touchanything.viz.pressure_panel import HAND_LABELS, MAP_GAP, MAP_TITLES, maps_width, unposed_as_nan
 from touchanything.viz.textures import TextureSlot
 
 CAMERA = (256, 192)
@@ -40,10 +38,10 @@ CAMERA_TEXTURE = (192, 144)
 """Camera textures are smaller than drawn (CAMERA): dearpygui re-uploads every raw texture every frame."""
 CELL = 7
 MAPS = (maps_width(CELL), 21 * CELL)
-CONTACT = (460, 84)
+CONTACT = (460, 64)
 PLOTS = (MAPS[0], MAPS[1] + 40)
 ATLAS = (3 * CAMERA[0] + 16, 118)
-MAP_NAMES = ("measured", "predicted", "error")
+MAP_NAMES = tuple(MAP_TITLES)
 MAP_COLUMN_GAP = 60
 WINDOW_COLOUR = (37, 37, 38)
 """The viewport is cleared to this colour and the full-screen window draws no background of its own:
@@ -61,8 +59,8 @@ FONT_SIZE = 13
 CHAR_WIDTH = 0.517 * FONT_SIZE
 """The font is monospaced; dearpygui scales it so that ascent − descent is FONT_SIZE pixels, and DejaVu Sans
 Mono advances 0.517 of that per character."""
-HAND_LABEL_SPACING = 21 * CELL + MAP_GAP - round(len("left hand") * CHAR_WIDTH)
-"""Puts "right hand" under the right map."""
+HAND_LABEL_SPACING = 21 * CELL + MAP_GAP - round(len(HAND_LABELS[0]) * CHAR_WIDTH)
+"""Puts the right hand's label under the right map."""
 
 
 @dataclass(frozen=True)
@@ -97,7 +95,6 @@ class Dashboard:
         self.session = session
         self.config = config
         self.stats = DashboardStats()
-        self.bend = TactileLayout.default().bend
         self.outline = False
         self.pending_screenshot: Path | None = None
         self.saved_screenshots: list[Path] = []
@@ -167,8 +164,8 @@ class Dashboard:
                                     dpg.add_text("", tag=f"title_{name}")
                                     dpg.add_image(self.maps[name].tag, tag=f"image_{name}", width=MAPS[0], height=MAPS[1])
                                     with dpg.group(horizontal=True, horizontal_spacing=HAND_LABEL_SPACING):
-                                        dpg.add_text("left hand")
-                                        dpg.add_text("right hand")
+                                        for label in HAND_LABELS:
+                                            dpg.add_text(label)
                     self.atlas = AtlasPanel(*ATLAS)
                 with dpg.group():
                     build_controls(self)
@@ -244,23 +241,25 @@ class Dashboard:
         """Bring what is shown up to `state`; True when anything on screen changed."""
         now_us = time.monotonic_ns() / 1000
         views = self.session.views
-        prediction = state.prediction
-        pressure = None if prediction is None else prediction.pressure
+        prediction, facts = state.prediction, state.facts
         new_snapshot = self._changed("snapshot", state.snapshot) | self._changed("views", views)
         if new_snapshot:
+            shown = None if prediction is None or facts is None else prediction.pressure
+            pressure = None if shown is None else unposed_as_nan(shown, facts.posed)  # the skeleton's discs, as the map
             for view in VIEW_NAMES:
                 self.cameras[view].show(camera_panel(state.snapshot, view, view in views, *CAMERA_TEXTURE, pressure))
             if state.snapshot is not None:
                 self.stats.camera_lag_ms.append((now_us - state.snapshot.t_us) / 1e3)
         settings = (self.session.threshold, self.outline, state.truth is None)
         new_prediction = self._changed("prediction", prediction)
-        new_maps = new_prediction | self._changed("settings", settings)
-        if new_maps:
+        new_maps = new_prediction | self._changed("facts", facts) | self._changed("settings", settings)
+        if new_maps:  # everything the prediction's facts decide, together: the panels never disagree
             for name, (image, title) in pressure_views(state, CELL, self.session.threshold, self.outline).items():
                 self.maps[name].show(blank(*MAPS, "n/a") if image is None else image)
                 dpg.set_value(f"title_{name}", title)
-            threshold = self.session.threshold
-            self.lamps.update(hand_contact(pressure, self.bend, threshold), hand_contact(state.truth, self.bend, threshold))
+            self.lamps.update(facts)
+            self.plots.show_values(None if facts is None else facts.rolling, None if prediction is None else prediction.latency_ms)
+            self._tables.show_metrics(facts)
         if new_prediction and prediction is not None:
             self.stats.prediction_lag_ms.append((now_us - prediction.t_us) / 1e3)
         changed = new_snapshot | new_maps
@@ -291,6 +290,7 @@ class Dashboard:
         if path is None:
             path = self.config.screenshot_dir / time.strftime("dashboard_%Y%m%d_%H%M%S.png")
         self.pending_screenshot = Path(path)
+        self.note = f"saving a screenshot: {self.pending_screenshot.name}"
         dpg.output_frame_buffer(callback=self._save_screenshot)
 
     def _save_screenshot(self, sender: object, buffer: object) -> None:

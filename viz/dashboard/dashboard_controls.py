@@ -2,7 +2,6 @@
 tables refreshed from each SessionState."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Protocol
 
@@ -12,8 +11,9 @@ import numpy as np
 from touchanything.devices.camera_pose.estimator import STAGE as POSE_STAGE
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.viz.comparison_video import VIEW_LABELS
+from touchanything.devices.view_sets import VIEW_LABELS
 from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState, SourceStatus
+from touchanything.viz.frame_facts import FrameFacts, metric_text
 from touchanything.viz.hand_projection import pose_label
 
 SPEEDS = ("0.25", "0.5", "1", "2", "4")
@@ -25,9 +25,15 @@ STAGES = ((POSE_STAGE, "pose"), ("preprocess", "preprocess"), ("encode", "encode
           ("total", "total"))
 """(stage, column title): the hand-pose estimator (camera poses only) and the engine's stages."""
 DEVICE_ROWS = 10
-DEVICE_COLUMNS = (("source", 12), ("state", 30), ("rate", 6), ("age", 8), ("drops", 5))
+DEVICE_COLUMNS = (("source", 18), ("state", 24), ("rate", 6), ("age", 8), ("drops", 5))
 """Device table columns and their widths in characters: a longer text is cut with "…" (the state's full
-text is in its tooltip), so that no text runs into the next column."""
+text is in its tooltip), so that no text runs into the next column. A camera's row is named by its label."""
+TEXT_WIDTH = 455
+"""Pixels from a text's start to where it wraps: the right-hand column's width (beside a scroll bar too)."""
+HEADER_HEIGHT = 104
+"""Pixels of the header (the model's line, the pose, the recording and the message): room for seven lines of
+text with the gaps between them (the model's line takes two, the message up to three). Its height is fixed, so
+that no text moves the controls below it; what does not fit scrolls inside it."""
 
 
 class ControlledDashboard(Protocol):
@@ -42,10 +48,11 @@ class ControlledDashboard(Protocol):
 
 
 def build_controls(dash: ControlledDashboard) -> None:
+    """The header (a fixed height) and the controls below it."""
     session = dash.session
-    dpg.add_text("", tag="model_text")
-    dpg.add_text("", tag="pose_text")
-    dpg.add_text("", tag="message_text", wrap=460)
+    with dpg.child_window(tag="header", height=HEADER_HEIGHT, border=False):
+        for tag in ("model_text", "pose_text", "recording_text", "message_text"):
+            dpg.add_text("", tag=tag, wrap=TEXT_WIDTH)
     with dpg.group(tag="transport"):
         with dpg.group(horizontal=True):
             dpg.add_button(label="Pause", tag="play_button", width=70, callback=lambda: _play_pause(dash))
@@ -76,9 +83,14 @@ def build_controls(dash: ControlledDashboard) -> None:
                              callback=lambda s, value: _set_threshold(dash, value))
         dpg.add_checkbox(label="outline measured", callback=lambda s, value: setattr(dash, "outline", value))
     with dpg.group(horizontal=True):
-        dpg.add_button(label="Record", tag="record_button", width=110, callback=lambda: session.toggle_recording())
-        dpg.add_button(label="Screenshot", width=110, callback=lambda: dash.request_screenshot())
-        dpg.add_text("", tag="recording_text")
+        dpg.add_button(label="Record", tag="record_button", width=110, callback=lambda: _record(dash))
+        dpg.add_button(label="Screenshot", tag="screenshot_button", width=110, callback=lambda: dash.request_screenshot())
+
+
+def _record(dash: ControlledDashboard) -> None:
+    """The Record button: its answer (the session's message) replaces whatever the dashboard said last."""
+    dash.note = ""
+    dash.session.toggle_recording()
 
 
 def _play_pause(dash: ControlledDashboard) -> None:
@@ -100,6 +112,7 @@ def _set_model(dash: ControlledDashboard) -> None:
 def _set_threshold(dash: ControlledDashboard, value: float) -> None:
     try:
         dash.session.set_threshold(float(value))
+        dash.note = ""
     except UserError as exc:
         dash.note = str(exc)
 
@@ -140,6 +153,8 @@ class Tables:
 
     def __init__(self) -> None:
         self._shown: dict[tuple[str, str], object] = {}
+        self._seen = ("", "")
+        self._message = ""
 
     def _put(self, tag: str, key: str, value: object) -> bool:
         """Set `key` ("value" or a configuration option) of item `tag` unless it already holds `value`."""
@@ -152,13 +167,30 @@ class Tables:
             dpg.configure_item(tag, **{key: value})
         return True
 
+    def message(self, note: str, message: str) -> str:
+        """The one message line: the newest of the dashboard's own `note` and the session's `message` (a note
+        cleared gives the line back to the session's message)."""
+        if message != self._seen[1]:
+            self._message = message
+        if note != self._seen[0]:
+            self._message = note or message
+        self._seen = (note, message)
+        return self._message
+
+    def show_metrics(self, facts: FrameFacts | None) -> None:
+        """The metric table from the shown prediction's facts (with the maps, the lamps and the plots' legends,
+        never on its own clock)."""
+        for key, _ in METRIC_ROWS:
+            for column, values in (("rolling", facts and facts.rolling), ("cumulative", facts and facts.cumulative)):
+                self._put(f"{column}_{key}", "value", metric_text(None if values is None else values[key]))
+
     def update(self, state: SessionState, note: str, display_fps: float) -> bool:
-        """Refresh from `state`; `note` (the dashboard's own notice) wins over the session's. True when
-        anything shown changed."""
+        """Refresh from `state`; `note`: the dashboard's own notice (`message`). True when anything shown
+        changed."""
         texts = {("model_text", "value"): f"model: {state.model}", ("pose_text", "value"): pose_label(state.snapshot),
-                 ("message_text", "value"): note or state.message,
+                 ("message_text", "value"): self.message(note, state.message),
                  ("record_button", "label"): "Stop recording" if state.recording else "Record",
-                 ("recording_text", "value"): state.recording or "",
+                 ("recording_text", "value"): state.recording or "", ("recording_text", "show"): bool(state.recording),
                  ("transport", "show"): state.playback is not None,
                  ("performance_text", "value"): _performance_line(state, display_fps)}
         playback = state.playback
@@ -169,9 +201,6 @@ class Tables:
             texts[("frame_text", "value")] = f"frame {shown} of {playback.frames}"
             if not dpg.is_item_active("seek"):
                 texts[("seek", "value")] = shown
-        for key, _ in METRIC_ROWS:
-            texts[(f"rolling_{key}", "value")] = _metric(state.rolling, key)
-            texts[(f"cumulative_{key}", "value")] = _metric(state.cumulative, key)
         for stage, _ in STAGES:
             value = state.stage_ms.get(stage)
             texts[(f"stage_{stage}", "value")] = ("-" if stage == POSE_STAGE else "skipped") if value is None else f"{value:.1f}"
@@ -195,12 +224,11 @@ def _shown_frame(state: SessionState) -> int:
     return min(frame, playback.frames - 1)
 
 
-def _metric(values: dict[str, float] | None, key: str) -> str:
-    value = None if values is None else values.get(key)
-    return "n/a" if value is None or math.isnan(value) else f"{value:.3f}"
-
-
 def _performance_line(state: SessionState, display_fps: float) -> str:
+    """The display's and the engine's rates and the recent latency; paused, the engine is said to be paused
+    (its last rates and latencies are not current)."""
+    if state.playback is not None and state.playback.paused:
+        return f"display {display_fps:.0f} fps, engine paused"
     latency = state.history.get("latency_ms", np.zeros(0))[-30:]
     text = f"display {display_fps:.0f} fps, engine {state.engine_fps:.1f} fps"
     if latency.size:
@@ -212,9 +240,10 @@ def _device_cells(status: SourceStatus) -> tuple[str, ...]:
     """The row's texts, each cut to its column's width."""
     rate = "" if status.rate_hz is None else f"{status.rate_hz:.0f} Hz"
     age = "" if status.age_ms is None else f"{status.age_ms:.0f} ms"
+    name = VIEW_LABELS.get(status.name, status.name)
     if not status.in_scene:
-        cells = (status.name, "not in this scene", "", "", "")
+        cells = (name, "not in this scene", "", "", "")
     else:
         state = ("ok" if status.connected else "DOWN") + (f" - {status.detail}" if status.detail else "")
-        cells = (status.name, state, rate, age, str(status.drops))
+        cells = (name, state, rate, age, str(status.drops))
     return tuple(text if len(text) <= chars else text[:chars - 1] + "…" for text, (_, chars) in zip(cells, DEVICE_COLUMNS))

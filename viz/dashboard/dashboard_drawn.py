@@ -7,11 +7,11 @@ from __future__ import annotations
 import dearpygui.dearpygui as dpg
 import numpy as np
 
-from touchanything.viz.contact import OFF, ON, UNKNOWN
+from touchanything.devices.snapshot import HANDS
+from touchanything.viz.contact import UNKNOWN, lamp_colour, verdict
+from touchanything.viz.frame_facts import FrameFacts, Metrics
 from touchanything.viz.line_plot import LATENCY_PLOT_MS, PLOT_SAMPLES, SERIES_COLOURS
 from touchanything.viz.pressure_panel import AXES
-
-AGREE, DISAGREE = (160, 230, 160), (255, 140, 120)
 
 
 class ContactLamps:
@@ -24,26 +24,29 @@ class ContactLamps:
             dpg.draw_text((width // 3, 4), "pred", size=14)
             dpg.draw_text((2 * width // 3 - 10, 4), "meas", size=14)
             self.lamps, self.verdicts = [], []
-            for h, label in enumerate(("left", "right")):
+            for h, label in enumerate(HANDS):
                 y = row * (h + 1) + row // 2
                 dpg.draw_text((8, y - 8), label, size=15)
                 self.lamps.append([dpg.draw_circle((width // 3 + 14 + k * (width // 3 - 10), y), row // 3,
                                                    fill=UNKNOWN, color=(0, 0, 0)) for k in range(2)])
                 self.verdicts.append(dpg.draw_text((width - 46, y - 8), "", size=14))
 
-    def update(self, predicted: np.ndarray | None, measured: np.ndarray | None) -> None:
+    def update(self, facts: FrameFacts | None) -> None:
+        """Show `facts` (None: nothing known yet)."""
         for h in range(2):
-            for k, flags in enumerate((predicted, measured)):
-                dpg.configure_item(self.lamps[h][k], fill=UNKNOWN if flags is None else (ON if flags[h] else OFF))
-            known = predicted is not None and measured is not None
-            agree = known and predicted[h] == measured[h]
-            dpg.configure_item(self.verdicts[h], text=("ok" if agree else "miss") if known else "",
-                               color=AGREE if agree else DISAGREE)
+            hand = None if facts is None else facts.hands[h]
+            for k in range(2):
+                contact = None if hand is None else (hand.contact_predicted, hand.contact_measured)[k]
+                dpg.configure_item(self.lamps[h][k], fill=lamp_colour(contact))
+            word, colour = verdict(None if hand is None else hand.agree)
+            dpg.configure_item(self.verdicts[h], text=word, color=colour)
 
 
 class HistoryPlots:
     """Two stacked line plots, newest sample at the right: rolling V-IoU and C-IoU on [0, 1] above the
-    capture-to-prediction latency on [0, LATENCY_PLOT_MS]; undefined samples leave gaps."""
+    capture-to-prediction latency on [0, LATENCY_PLOT_MS]; undefined samples leave gaps. The legends carry
+    the shown prediction's values (`show_values`: the same record the metrics table reads), the lines the
+    recent history (`update`)."""
 
     PANES = ((("volumetric_iou", "V-IoU"), ("contact_iou", "C-IoU")), (("latency_ms", "latency"),))
 
@@ -58,20 +61,28 @@ class HistoryPlots:
                 dpg.draw_text((6, top + 2), title, size=14)
                 dpg.draw_text((4, top + 20), "1" if p == 0 else f"{LATENCY_PLOT_MS:g}", size=12)
                 dpg.draw_text((20, top + self.pane - 20), "0", size=12)
-                for k, (key, _) in enumerate(series):
+                for k, (key, label) in enumerate(series):
                     colour = SERIES_COLOURS[k]
                     self.lines[key] = dpg.draw_polyline([], color=colour, thickness=1)
-                    self.legends[key] = dpg.draw_text((40 + 95 * k, top + 24), "", color=colour, size=14)
+                    self.legends[key] = dpg.draw_text((40 + 95 * k, top + 24), f"{label} n/a", color=colour, size=14)
 
     def update(self, history: dict[str, np.ndarray]) -> None:
+        """The lines: each series' last PLOT_SAMPLES values."""
         for p, series in enumerate(self.PANES):
             top, scale = p * self.pane, 1.0 if p == 0 else LATENCY_PLOT_MS
-            for key, label in series:
+            for key, _ in series:
                 values = history.get(key, np.zeros(0))[-PLOT_SAMPLES:]
                 x = self.width - 6 - (len(values) - 1 - np.arange(len(values))) * (self.width - 40) / (PLOT_SAMPLES - 1)
                 y = top + self.pane - 8 - np.clip(values, 0, scale) / scale * (self.pane - 30)
                 finite = np.isfinite(values)
                 dpg.configure_item(self.lines[key], points=np.stack([x[finite], y[finite]], axis=1).tolist())
-                latest = values[finite][-1] if finite.any() else None
-                text = "n/a" if latest is None else (f"{latest:.0f} ms" if p else f"{latest:.2f}")
+
+    def show_values(self, rolling: Metrics | None, latency_ms: float | None) -> None:
+        """The legends: the rolling metrics of the shown prediction's facts (two decimals; "n/a" for None) and
+        its latency."""
+        values = {**(rolling or {}), "latency_ms": latency_ms}
+        for series in self.PANES:
+            for key, label in series:
+                value = values.get(key)
+                text = "n/a" if value is None else f"{value:.0f} ms" if key == "latency_ms" else f"{value:.2f}"
                 dpg.configure_item(self.legends[key], text=f"{label} {text}")

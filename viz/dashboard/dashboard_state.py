@@ -2,6 +2,7 @@
 by the render loop without waiting) and the control interface a replay or live session implements."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -10,6 +11,7 @@ import numpy as np
 from touchanything.devices.snapshot import Snapshot
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.evaluation.atlas import AtlasRow
+from touchanything.viz.frame_facts import FrameFacts, Metrics
 
 
 @dataclass(frozen=True)
@@ -42,8 +44,9 @@ class SessionState:
     """One consistent picture, published by the session and read by the render loop.
 
     snapshot: the newest camera frame; prediction: the newest prediction and truth: the (2, 21, 21)
-    measured pressure of the prediction's frame (None without a glove / ground truth); rolling and
-    cumulative: official metric dicts (None without ground truth; NaN = undefined); history: recent
+    measured pressure of the prediction's frame (None without a glove / ground truth); facts: the prediction's
+    `FrameFacts` (posed and measured hands, contact lamps, the official metrics as they stood after it: what
+    every panel shows of it); history: recent
     series by name (volumetric_iou, contact_iou rolling; latency_ms), oldest first; stage_ms: mean
     engine stage times over recent steps; engine_fps: predictions per second; sources: device rows;
     playback: None in live mode; model: the running model and tier; message: the latest notice; setting: the
@@ -54,8 +57,7 @@ class SessionState:
     snapshot: Snapshot | None = None
     prediction: Prediction | None = None
     truth: np.ndarray | None = None
-    rolling: dict[str, float] | None = None
-    cumulative: dict[str, float] | None = None
+    facts: FrameFacts | None = None
     metric_frames: int = 0
     history: dict[str, np.ndarray] = field(default_factory=dict)
     stage_ms: dict[str, float] = field(default_factory=dict)
@@ -69,6 +71,20 @@ class SessionState:
     step_p99_ms: float | None = None
     atlas: tuple[AtlasRow, ...] = ()
     atlas_note: str = ""
+
+    @property
+    def rolling(self) -> dict[str, float] | None:
+        """The facts' official metrics over the last 3 s, NaN where undefined (None without ground truth)."""
+        return _with_nan(None if self.facts is None else self.facts.rolling)
+
+    @property
+    def cumulative(self) -> dict[str, float] | None:
+        """The facts' official metrics since the start, NaN where undefined (None without ground truth)."""
+        return _with_nan(None if self.facts is None else self.facts.cumulative)
+
+
+def _with_nan(metrics: Metrics | None) -> dict[str, float] | None:
+    return None if metrics is None else {key: math.nan if value is None else value for key, value in metrics.items()}
 
 
 class DashboardSession(Protocol):

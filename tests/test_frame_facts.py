@@ -1,0 +1,96 @@
+"""One record of a frame's derived facts (`viz.frame_facts`): per hand posed, measured, the contact rule and
+agreement, the metrics with None for n/a — and the comparison video, the replay summary and the Rerun recording
+all show that one record (a hand without a pose: no predicted contact anywhere, a "no pose" map)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from helpers.rerun_reading import recording_rows
+from touchanything.app.cli import main
+from touchanything.devices.episodes.video_io import VideoReader
+from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.inference.evaluation.running_metrics import RunningMetrics
+from touchanything.viz.comparison_video import CAMERA_HEIGHT, PANEL_HEIGHT
+from touchanything.viz.contact import UNKNOWN, lamp_centre
+from touchanything.viz.frame_facts import frame_facts, metric_text
+from touchanything.viz.pressure_panel import BACKGROUND
+
+LAYOUT = TactileLayout.default()
+TACTILE = LAYOUT.valid & ~LAYOUT.bend
+"""The cells the contact rule counts: inside the layout, not a bend cell (151 per hand)."""
+
+
+def pressed(cells_per_hand: tuple[int, int], value: float = 0.5) -> np.ndarray:
+    """(2, 21, 21): 0 on the layout, NaN outside, `value` on the first n tactile cells of each hand."""
+    grids = np.where(LAYOUT.valid, 0.0, np.nan)
+    for h, n in enumerate(cells_per_hand):
+        rows, cols = np.nonzero(TACTILE[h])
+        grids[h, rows[:n], cols[:n]] = value
+    return grids
+
+
+def test_the_contact_rule_per_hand_at_five_percent_of_its_tactile_cells():
+    assert TACTILE.sum(axis=(1, 2)).tolist() == [151, 151]  # so 8 cells (≥ 7.55) make contact, 7 do not
+    facts = frame_facts(pressed((8, 7)), (True, True), pressed((7, 8)), LAYOUT.bend)
+    assert [(h.contact_predicted, h.contact_measured, h.agree) for h in facts.hands] == [(True, False, False),
+                                                                                     (False, True, False)]
+    at_threshold = frame_facts(pressed((8, 8), value=0.1), None, None, LAYOUT.bend)  # strictly above 0.1 counts
+    assert [h.contact_predicted for h in at_threshold.hands] == [False, False]
+    assert [h.contact_predicted for h in frame_facts(pressed((8, 8), 0.25), None, None, LAYOUT.bend, 0.2).hands] == [True, True]
+
+
+def test_an_unposed_or_unmeasured_hand_is_unknown_not_no_contact():
+    measured = pressed((20, 20))
+    measured[1] = np.nan  # no glove sample of the right hand
+    facts = frame_facts(pressed((20, 20)), (True, False), measured, LAYOUT.bend)
+    left, right = facts.hands
+    assert (left.posed, left.measured, left.contact_predicted, left.contact_measured, left.agree) == (True, True, True, True, True)
+    assert (right.posed, right.measured, right.contact_predicted, right.contact_measured, right.agree) == (
+        False, False, None, None, None)  # its values say "contact", but the model did not predict it
+    assert facts.unposed == ["right"] and facts.posed == (True, False)
+    assert np.array_equal(facts.contact("predicted"), [1.0, np.nan], equal_nan=True)
+    nothing = frame_facts(None, None, None, LAYOUT.bend)
+    assert not nothing.predicted and not nothing.measured and nothing.unposed == [] and nothing.rolling is None
+    assert all(h.contact_predicted is None and h.contact_measured is None for h in nothing.hands)
+
+
+def test_the_metrics_are_numbers_or_none_for_n_a():
+    metrics = RunningMetrics(LAYOUT.bend)
+    empty = pressed((0, 0))
+    metrics.add(empty, empty)  # no cell above the threshold in either map: contact IoU 0/0, volumetric 0/0
+    facts = frame_facts(empty, None, empty, LAYOUT.bend, metrics=metrics)
+    assert facts.rolling["contact_iou"] is None and facts.cumulative["volumetric_iou"] is None
+    assert facts.rolling["temporal_accuracy"] == 1.0 and facts.rolling["mae"] == 0.0
+    assert [metric_text(v) for v in (None, math.nan, 0.0, 0.12345)] == ["n/a", "n/a", "0.000", "0.123"]
+
+
+def test_the_video_the_summary_and_the_recording_show_one_record(episode_dir, tmp_path, capsys, monkeypatch):
+    """The conftest episode: the right hand has no pose at frames 3, 10, 17, 24, 31, 38 (40 frames)."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    video, rrd = tmp_path / "r.mp4", tmp_path / "r.rrd"
+    assert main(["replay", str(episode_dir), "--headless", "--out", str(video), "--rerun", str(rrd)]) == 0
+    printed = capsys.readouterr().out
+    lamps = next(line for line in printed.splitlines() if line.startswith("contact   lamps"))
+    assert "(left " in lamps and " of 40 frames, right " in lamps and " of 34; " in lamps  # the unposed frames uncounted
+
+    rows, _ = recording_rows(rrd)
+    predicted = rows["/contact/predicted"]
+    assert math.isnan(predicted.at("Scalars:scalars", 10)[1]) and not math.isnan(predicted.at("Scalars:scalars", 10)[0])
+    assert not any(math.isnan(v) for v in predicted.at("Scalars:scalars", 11))
+    right_values = np.frombuffer(bytes(rows["/pressure/predicted/right"].at("DepthImage:buffer", 10)[0]), np.float16)
+    assert np.isnan(right_values).all()  # not a map of zeros
+
+    with VideoReader(video) as reader:
+        frame, posed = reader.read(10).astype(int), reader.read(11).astype(int)
+    row = max(150 // 3, 14)  # the lamps' row height in the 150-pixel strip
+    strip = CAMERA_HEIGHT + PANEL_HEIGHT
+    for image, unknown in ((frame, True), (posed, False)):
+        x, y = lamp_centre(0, 1, 480, row)  # the right hand's predicted lamp, in the strip's third panel
+        colour = image[strip + y, 960 + x]
+        assert (np.abs(colour - UNKNOWN).max() < 12) == unknown, colour
+    maps = frame[CAMERA_HEIGHT:strip, 480:960]
+    right_map = maps[40:40 + 21 * 14, 10 + 21 * 14 + 10:10 + 2 * 21 * 14 + 10]  # panel_cell(480, 360) = 14
+    background = np.abs(right_map - BACKGROUND).max(axis=-1) < 12
+    assert background.mean() > 0.9, "the unposed right hand is drawn as a map"  # background with "no pose" on it
