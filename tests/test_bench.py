@@ -232,6 +232,9 @@ def test_few_held_out_trajectories_are_a_warning_and_the_run_goes_on(tmp_path, c
     assert main(["bench", "--quick", "--frames", "15", "--models", str(REPO / "models" / "baseline_pose"), "--out", str(out)]) == 0
     err = capsys.readouterr().err
     assert "warning: only 3 held-out trajectories: the 95 % intervals are wide" in err
+    # every phase says what it does (no long silence): reading, each setting's accuracy, each latency round
+    assert "reading 3 held-out trajectories" in err and "baseline_pose/onnx-int8/all: accuracy on 3 trajectories" in err
+    assert "latency round 1/" in err and "-0.000" not in (out / "engine.md").read_text()
     record = json.loads((out / "engine.json").read_text())  # the whole command: JSON, Markdown, plot
     assert [t["split"] for t in record["trajectories"]] == ["episodes"] * 3
     rows = {row["setting"]: row for row in record["rows"]}
