@@ -49,6 +49,7 @@ from touchanything.viz.pressure_panel import BACKGROUND, unposed_as_nan
 from touchanything.viz.rerun_blueprint import MAP_ENTITIES, SHOWN_METRICS, default_blueprint
 from touchanything.viz.rerun_columns import ColumnBuffer
 from touchanything.viz.rerun_hands import HandSurfaces, hand_classes
+from touchanything.viz.rerun_serving import ANY, LOCALHOST, ServedAt, free_port
 
 APPLICATION = "touchanything"
 JPEG_QUALITY = 75
@@ -66,13 +67,15 @@ in chunk headers than the data, and the file's footer keeps an entry per chunk i
 @dataclass(frozen=True)
 class RerunTarget:
     """Where a recording goes: `rrd`, a file (written under a temporary name in its folder and renamed when the
-    recording closes); `serve_port`, a local web viewer on that HTTP port fed by a gRPC server on 127.0.0.1
-    (`grpc_port`, 0: any free port). `image_scale` scales camera frames logged as JPEG (the live rig's)."""
+    recording closes); `serve_port`, a web viewer on that HTTP port fed by a gRPC server on `serve_host`
+    (127.0.0.1: this machine only) at `grpc_port` (0: a free one, read back; `viz.rerun_serving`). `image_scale`
+    scales camera frames logged as JPEG (the live rig's)."""
 
     rrd: Path | None = None
     serve_port: int | None = None
     grpc_port: int = 0
     image_scale: float = 1.0
+    serve_host: str = LOCALHOST
 
 
 def map_image(grids: np.ndarray, lut: np.ndarray, low: float) -> np.ndarray:
@@ -90,25 +93,29 @@ def map_image(grids: np.ndarray, lut: np.ndarray, low: float) -> np.ndarray:
 class RerunRecording:
     """One Rerun recording. Methods may be called from any thread, one at a time; rows are sent in batches
     (`viz.rerun_columns`), each with its own frame and time.
-    `close()` flushes, writes the file's footer and renames it into place; `url` is the web viewer's address
-    when serving."""
+    `close()` flushes, writes the file's footer and renames it into place; `served` says where it is watched
+    when serving (`url`: its web viewer). OSError when a port is in use or the address is not this machine's."""
 
     def __init__(self, target: RerunTarget, name: str, properties: Mapping[str, str]) -> None:
         self.target = target
-        self.url: str | None = None
+        self.served: ServedAt | None = None
+        if target.serve_port is not None:
+            try:
+                free_port(ANY[0], target.serve_port)  # Rerun's web server listens on every interface
+            except OSError as exc:
+                raise OSError(f"the web viewer's port: {exc}") from None
+            self.served = ServedAt(target.serve_host, free_port(target.serve_host, target.grpc_port), target.serve_port)
         batching = rr.ChunkBatcherConfig(flush_tick=timedelta(seconds=FLUSH_SECONDS), flush_num_bytes=FLUSH_BYTES)
         self._stream = rr.RecordingStream(APPLICATION, send_properties=True, batcher_config=batching)
         sinks = []
         if target.rrd is not None:
             target.rrd.parent.mkdir(parents=True, exist_ok=True)  # the output check creates nothing
             sinks.append(rr.FileSink(temporary_path(target.rrd)))
-        if target.serve_port is not None:
-            server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=target.grpc_port, server_memory_limit="512MiB")
-            sinks.append(server)
+        if self.served is not None:
+            sinks.append(rr.GrpcServerSink(bind_ip=self.served.host, port=self.served.grpc_port, server_memory_limit="512MiB"))
         self._stream.set_sinks(*sinks, default_blueprint=default_blueprint())
-        if target.serve_port is not None:
-            rr.serve_web_viewer(web_port=target.serve_port, open_browser=False, connect_to=server.uri)
-            self.url = f"http://localhost:{target.serve_port}/?url={server.uri}"
+        if self.served is not None:
+            rr.serve_web_viewer(web_port=self.served.web_port, open_browser=False, connect_to=self.served.data_url)
         self._stream.send_recording_name(name)
         if properties:
             self._stream.send_property("session", rr.AnyValues(**{k: str(v) for k, v in properties.items()}))
@@ -117,6 +124,11 @@ class RerunRecording:
         self._image_size: dict[str, tuple[int, int]] = {}
         self._surfaces = HandSurfaces(self._rows)
         self._log_static()
+
+    @property
+    def url(self) -> str | None:
+        """The web viewer's address when serving, else None."""
+        return None if self.served is None else self.served.web_url
 
     def _log_static(self) -> None:
         log = self._stream.log

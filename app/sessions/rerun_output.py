@@ -36,7 +36,11 @@ def add_rerun_arguments(parser: argparse.ArgumentParser, serve: bool = True) -> 
     if serve:
         parser.add_argument("--rerun-serve", type=int, nargs="?", const=DEFAULT_WEB_PORT, metavar="PORT",
                             help=f"also serve the recording to a web viewer at http://localhost:PORT (default port "
-                                 f"{DEFAULT_WEB_PORT}; default: not served)")
+                                 f"{DEFAULT_WEB_PORT}; default: not served), on this machine only unless --rerun-serve-host")
+        parser.add_argument("--rerun-serve-host", metavar="ADDRESS", default=None,
+                            help="with --rerun-serve: serve the data on this address of the machine (e.g. its LAN address, "
+                                 "or 0.0.0.0 for every interface) to watch from another machine; unauthenticated "
+                                 "(default: 127.0.0.1, this machine only)")
 
 
 def check_rrd_output(path: Path, overwrite: bool, inputs: Iterable[Path | None] = ()) -> None:
@@ -50,6 +54,9 @@ def check_rrd_output(path: Path, overwrite: bool, inputs: Iterable[Path | None] 
 def rerun_target(args: argparse.Namespace, inputs: Iterable[Path | None] = (), image_scale: float = 1.0) -> RerunTarget | None:
     """The target of the command's --rerun / --rerun-serve options (None: neither), checked against the
     command's `inputs`."""
+    host = getattr(args, "rerun_serve_host", None)
+    if host is not None and args.rerun_serve is None:
+        raise UserError("--rerun-serve-host: only with --rerun-serve (it says where the served recording is watched)")
     if args.rerun is None and args.rerun_serve is None:
         return None
     if args.rerun is not None:
@@ -57,8 +64,14 @@ def rerun_target(args: argparse.Namespace, inputs: Iterable[Path | None] = (), i
     if args.rerun_serve is not None and not 0 < args.rerun_serve < 65536:
         raise UserError(f"--rerun-serve: {args.rerun_serve} is not a port number (1–65535)")
     from touchanything.viz.rerun_recording import RerunTarget
+    from touchanything.viz.rerun_serving import LOCALHOST, check_serve_host
 
-    return RerunTarget(args.rerun, args.rerun_serve, image_scale=image_scale)
+    try:
+        host = LOCALHOST if host is None else check_serve_host(host)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+
+    return RerunTarget(args.rerun, args.rerun_serve, image_scale=image_scale, serve_host=host)
 
 
 def open_recording(target: RerunTarget, name: str, properties: Mapping[str, str]) -> RerunRecording:
@@ -69,8 +82,8 @@ def open_recording(target: RerunTarget, name: str, properties: Mapping[str, str]
         recording = RerunRecording(target, name, properties)
     except (OSError, RuntimeError, ValueError) as exc:
         raise UserError(f"cannot start the Rerun recording: {exc}") from None
-    if recording.url:
-        print(f"rerun     web viewer at {recording.url}", flush=True)
+    if recording.served is not None:
+        print("\n".join(recording.served.lines()), flush=True)
     return recording
 
 
