@@ -1,9 +1,11 @@
-"""Keep a native library's own complaints off the terminal: its C/C++ code writes to file descriptor 2
-directly, past Python's sys.stderr."""
+"""Keep a native library's own complaints off the terminal where the project says what happened itself: its
+C/C++ code writes to file descriptor 2 directly, past Python's sys.stderr (`quiet_stderr`), or through its own
+logger (`quiet_opencv`)."""
 from __future__ import annotations
 
 import contextlib
 import os
+import threading
 from collections.abc import Iterator
 
 
@@ -18,3 +20,32 @@ def quiet_stderr() -> Iterator[None]:
     finally:
         os.dup2(saved, 2)
         os.close(saved)
+
+
+class _OpenCVQuiet:
+    """How many threads are inside `quiet_opencv` now, and OpenCV's log level from before the first one."""
+
+    lock = threading.Lock()
+    depth = 0
+    level = 0
+
+
+@contextlib.contextmanager
+def quiet_opencv() -> Iterator[None]:
+    """OpenCV's logging silenced for the duration (a camera that does not open warns on stderr before the
+    caller can say so in one line), then its level from before restored: when the last of several threads
+    (cameras opened at once) leaves, also on an exception."""
+    import cv2  # imported where used: the commands that never open a camera do not load OpenCV for this
+
+    with _OpenCVQuiet.lock:
+        if _OpenCVQuiet.depth == 0:
+            _OpenCVQuiet.level = cv2.utils.logging.getLogLevel()
+            cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        _OpenCVQuiet.depth += 1
+    try:
+        yield
+    finally:
+        with _OpenCVQuiet.lock:
+            _OpenCVQuiet.depth -= 1
+            if _OpenCVQuiet.depth == 0:
+                cv2.utils.logging.setLogLevel(_OpenCVQuiet.level)

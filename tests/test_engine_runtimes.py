@@ -9,7 +9,9 @@ from touchanything.app.cli import main
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.engine_config import EngineConfig
-from touchanything.inference.engine.onnx_runtime import OnnxRuntime, onnx_cache_dir
+from touchanything.inference.engine.onnx_cache import onnx_cache_dir
+from touchanything.inference.engine.onnx_export import weights_sha256
+from touchanything.inference.engine.onnx_runtime import OnnxRuntime
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.checkpoint import build_model, save_checkpoint
 from touchanything.inference.model.model_config import PRESETS
@@ -77,7 +79,7 @@ def test_onnx_graphs_are_exported_once_into_the_cache(exported, tmp_path, monkey
     model, _ = exported
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     StreamingEngine(model, EngineConfig(runtime="onnx", precision="int8"))
-    folder = onnx_cache_dir(model)
+    folder = onnx_cache_dir(weights_sha256(model))
     stamp = (folder / "engine.json").stat().st_mtime_ns
     StreamingEngine(model, EngineConfig(runtime="onnx"))
     assert (folder / "engine.json").stat().st_mtime_ns == stamp

@@ -72,6 +72,31 @@ def test_eval_writes_the_table_per_view_and_scene(sim_hdf5_root, tiny_checkpoint
         assert reader.read(30).std() > 10
 
 
+def test_eval_video_marks_the_views_the_model_does_not_use(sim_hdf5_root, tiny_checkpoint, tmp_path, capsys):
+    """`--views ego`: the wrist cameras are dimmed to 35 % under "… — not used"; the pose-only rows (black frames)
+    dim every view; `all` shows the three as they are."""
+    out = tmp_path / "out"
+    assert main(["eval", "--checkpoint", str(tiny_checkpoint), "--data", str(sim_hdf5_root), "--split", nonempty_split(sim_hdf5_root),
+                 "--num-traj", "1", "--views", "ego", "all", "--pose-only-baseline", "--out", str(out), "--video"]) == 0
+    capsys.readouterr()
+    frames = {}
+    for video in out.glob("*.mp4"):  # <scene>_<task>_<trajectory>_<views>[_pose_only].mp4
+        name = next(n for n in ("ego_pose_only", "all_pose_only", "ego", "all") if video.stem.endswith(f"_{n}"))
+        with VideoReader(video) as reader:
+            frames[name] = reader.read(30).astype(np.float64)
+    assert sorted(frames) == ["all", "all_pose_only", "ego", "ego_pose_only"], sorted(frames)
+
+    def tile(name: str, k: int) -> np.ndarray:  # a camera below its label
+        return frames[name][40:270, 480 * k:480 * (k + 1)]
+
+    for name, used in (("ego", (True, False, False)), ("all_pose_only", (False, False, False)),
+                       ("ego_pose_only", (False, False, False))):
+        for k, shown in enumerate(used):
+            expected = tile("all", k) * (1.0 if shown else 0.35)
+            assert np.abs(tile(name, k) - expected).mean() < 5, (name, VIEW_NAMES[k])
+    assert tile("all", 1).mean() > 40  # the wrist camera is bright enough for its dimming to show
+
+
 def test_stitching_covers_every_frame_and_causal_starts_at_frame_14(sim_hdf5_root, tiny_checkpoint):
     model = load_model(tiny_checkpoint)
     path = read_split(sim_hdf5_root / "split.json")[nonempty_split(sim_hdf5_root)][0]

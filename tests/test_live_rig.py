@@ -4,6 +4,8 @@ errors."""
 from __future__ import annotations
 
 import itertools
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -132,3 +134,17 @@ def test_an_absent_device_is_named_and_nothing_is_left_running(tmp_path, capsys)
     assert threading.active_count() <= threads
     assert main(["live", "--scene", str(tmp_path / "missing.toml"), "--headless"]) == 2
     assert "scene file not found" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", [["live", "--headless", "--seconds", "1"], ["record", "--out", "OUT", "--seconds", "1"]])
+def test_a_scene_whose_webcam_is_absent_is_one_line_and_nothing_before_it(tmp_path, command):
+    """scenes/webcam.toml on a machine without a camera at index 0: OpenCV's own warnings ("[ WARN:0@…] global
+    cap_v4l.cpp …") stay off stderr, which holds our one line."""
+    if Path("/dev/video0").exists():
+        pytest.skip("a camera is attached: scenes/webcam.toml would open it")
+    argv = [str(tmp_path / "episode") if part == "OUT" else part for part in command]
+    proc = subprocess.run([sys.executable, "-m", "touchanything.app.cli", *argv, "--scene", str(SCENES / "webcam.toml")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(f"touchanything {command[0]}: error: "), proc.stderr
+    assert "no camera at 0" in proc.stderr, proc.stderr

@@ -201,7 +201,7 @@ def writing_commands(i: dict[str, Path]) -> list[tuple[list[str], list[Path], li
          [i["episode"], i["checkpoint"].parent], []),
         (["convert", ep, "{}"], [i["episode"]], []),
         (["train", "--config", str(i["config"]), "--data", h5, "--out", "{}"], [i["config"], i["h5"]], []),
-        (["export-onnx", "--checkpoint", ckpt, "--out", "{}"], [i["checkpoint"]], []),
+        (["export-onnx", "--checkpoint", ckpt, "--out", "{}"], [i["checkpoint"]], ["--overwrite"]),
         (["export-lerobot", ep, "{}"], [i["episode"]], ["--overwrite"]),
         (["record", "--scene", str(i["scene"]), "--seconds", "1", "--out", "{}"], [i["scene"]], []),
     ]

@@ -368,10 +368,15 @@ def test_eval_video_writes_one_recording_per_trajectory(sim_hdf5_root, tiny_chec
     assert len(recordings) == sum(len(r["trajectories"]) for r in results) == 2  # one per trajectory and view configuration
     assert len({r.recording_id for r in recordings}) == 2
     frames = results[0]["trajectories"][0]["frames"]
+    marked = []
     for recording in recordings:
         rows, _ = recording_rows(out, recording)
         assert rows["/pressure/measured"].data_frames("EncodedImage:blob") == list(range(frames))
         assert len(rows["/cameras/ego"].data_frames("EncodedImage:blob")) == frames  # HDF5 frames go as JPEG
+        marked.append(sorted(entity for entity, entity_rows in rows.items()
+                             if entity.endswith("/not_used") and entity_rows.data_frames("Points2D:positions") == [0]))
+    # --views ego: the wrist cameras are marked "not used" from the first frame on; all: none is
+    assert marked == [["/cameras/wrist_left/not_used", "/cameras/wrist_right/not_used"], []]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["eval", "eval.rrd"]  # no part left behind
 
 

@@ -2,6 +2,7 @@
 latency plots and the contact lamps at the bottom) and the video writer."""
 from __future__ import annotations
 
+from collections.abc import Collection
 from pathlib import Path
 
 import cv2
@@ -10,8 +11,8 @@ import numpy as np
 from touchanything.devices.episodes.video_io import VideoWriter, video_comment
 from touchanything.devices.output_safety import replacing
 from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.view_sets import VIEW_LABELS
-from touchanything.viz.pressure_panel import BACKGROUND, MAP_TITLES, pressure_panel, put_text
+from touchanything.devices.view_sets import view_label
+from touchanything.viz.pressure_panel import BACKGROUND, MAP_TITLES, dimmed, pressure_panel, put_text
 
 WIDTH, CAMERA_HEIGHT, PANEL_HEIGHT, STRIP_HEIGHT, FOOTER_HEIGHT = 1440, 270, 360, 150, 26
 CAPTION_COLOURS = ((235, 235, 235), (40, 180, 255))  # BGR: the model line, then a warning in amber
@@ -21,23 +22,25 @@ COMMENT = "touchanything comparison video"
 
 def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred: np.ndarray | None, footer: str,
                      strip: np.ndarray | None = None, hand3d: np.ndarray | None = None,
-                     caption: tuple[str, ...] = ()) -> np.ndarray:
+                     caption: tuple[str, ...] = (), used: Collection[str] = VIEW_NAMES) -> np.ndarray:
     """(806, 1440, 3) uint8: the three views (480×270 each), the measured | predicted | difference maps, `strip`
     (150, 1440, 3) and the footer line; without a strip (656, 1440, 3). `hand3d` (h, 1440, 3), the pressure on
     the 3D hands, goes below the panels (the frame grows by h).
 
     `caption`: lines at the foot of the panels (what the model is; the second line, a warning, in amber).
-    Absent views, ground truth or prediction leave labelled placeholders."""
+    `used`: the views the model takes anything from (`view_sets.views_used`); the others are dimmed and labelled
+    "… — not used". Absent views, ground truth or prediction leave labelled placeholders."""
     strip_height = 0 if strip is None else STRIP_HEIGHT
     extra = 0 if hand3d is None else hand3d.shape[0]
     frame = np.empty((CAMERA_HEIGHT + PANEL_HEIGHT + extra + strip_height + FOOTER_HEIGHT, WIDTH, 3), np.uint8)
     frame[:] = BACKGROUND
     for k, view in enumerate(VIEW_NAMES):
-        x, label = k * 480, VIEW_LABELS[view]
+        x, label = k * 480, view_label(view, view in used)
         image = images.get(view)
         if image is not None:
-            frame[:CAMERA_HEIGHT, x:x + 480] = cv2.resize(image, (480, CAMERA_HEIGHT), interpolation=cv2.INTER_AREA)
-        put_text(frame, label if image is not None else f"{label}: no image", (x + 8, 22), 0.6)
+            small = cv2.resize(image, (480, CAMERA_HEIGHT), interpolation=cv2.INTER_AREA)
+            frame[:CAMERA_HEIGHT, x:x + 480] = small if view in used else dimmed(small)
+        put_text(frame, label if image is not None or view not in used else f"{label}: no image", (x + 8, 22), 0.6)
     panels = [(gt, MAP_TITLES["measured"], False, "no glove"), (pred, MAP_TITLES["predicted"], False, "no pose"),
               (None if gt is None or pred is None else pred - gt, MAP_TITLES["error"], True, "n/a")]
     for k, (grids, title, error, empty) in enumerate(panels):

@@ -19,6 +19,8 @@ MAP_TITLES = {"measured": "measured pressure", "predicted": "predicted pressure"
 """What every user-facing text calls the three maps (the dashboard, the comparison video, Rerun)."""
 HAND_LABELS = ("left hand", "right hand")
 """The maps' hand labels, [left, right]."""
+UNUSED_BRIGHTNESS = 0.35
+"""How bright a camera frame the model does not use is drawn (`dimmed`)."""
 
 
 def hand_map(grid: np.ndarray, cell: int, error: bool = False) -> np.ndarray:
@@ -48,6 +50,11 @@ def put_text(image: np.ndarray, text: str, origin: tuple[int, int], scale: float
     x, y = origin
     cv2.putText(image, text, (x + 1, y + 1), FONT, scale, (0, 0, 0), 1, cv2.LINE_AA)
     cv2.putText(image, text, origin, FONT, scale, colour, 1, cv2.LINE_AA)
+
+
+def dimmed(image: np.ndarray) -> np.ndarray:
+    """A camera frame the model does not use, as every panel draws it: a copy at UNUSED_BRIGHTNESS."""
+    return (image * UNUSED_BRIGHTNESS).astype(np.uint8)
 
 
 @functools.lru_cache(maxsize=16)

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from touchanything.devices.snapshot import Snapshot
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.devices.view_sets import view_set_name
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.viz.comparison_video import STRIP_HEIGHT, comparison_frame
@@ -52,10 +52,11 @@ class ReplayFrameRenderer:
         self.step_ms: list[float] = []
 
     def render(self, snapshot: Snapshot, truth: np.ndarray | None, shown: np.ndarray | None,
-               latest: Prediction | None, facts: FrameFacts) -> np.ndarray:
+               latest: Prediction | None, facts: FrameFacts, used: tuple[str, ...] = VIEW_NAMES) -> np.ndarray:
         """The comparison frame of `snapshot`: `shown` is the prediction of this very frame (None when there
         is none), `latest` the newest prediction so far, `facts` this frame's (`viz.frame_facts`): which hands
-        the maps show, the contact lamps and the metrics of the plots and the footer."""
+        the maps show, the contact lamps and the metrics of the plots and the footer; `used`: the views the
+        model takes anything from (the others are marked "not used")."""
         self._add(facts, latest)
         images = dict(snapshot.images)
         if "ego" in images:
@@ -63,7 +64,7 @@ class ReplayFrameRenderer:
         footer = footer_text(snapshot, self.total_frames, latest, facts, self.setting)
         hands = hand3d_panel(snapshot.joints, snapshot.joints_valid, truth, shown) if self.hand3d else None
         maps = None if shown is None else unposed_as_nan(shown, facts.posed)
-        return comparison_frame(images, truth, maps, footer, self._strip(facts), hands, self.caption)
+        return comparison_frame(images, truth, maps, footer, self._strip(facts), hands, self.caption, used)
 
     def _add(self, facts: FrameFacts, prediction: Prediction | None) -> None:
         rolling = facts.rolling or {}

@@ -5,7 +5,8 @@ Every row is on two timelines: `frame` (the episode's frame index, or the live r
 
 - `cameras/{ego,wrist_left,wrist_right}`: the episode's own MP4 as a video asset with one frame reference per
   frame (`log_videos`), else a JPEG per frame (`log_observation`); `cameras/ego/hands`: both skeletons projected
-  into the head camera.
+  into the head camera; `cameras/{view}/not_used`: while the model takes nothing from a view, a point at the
+  image's top left labelled "left wrist camera — not used" (`view_sets.view_label`), cleared when it is used again.
 - `world/hands`: both hands' 3D joints with their bones, class 0 the left hand and 1 the right, keypoints in the
   official joint order and named (`wrist`, `thumb_1` … `pinky_4`: shown on hover) (WiLoR's head-camera frame:
   metres, x right, y down, z forward); `world/surface/{left,right}`: the hand surface with vertex normals, painted
@@ -31,7 +32,7 @@ are grouped so that a frame takes about 20 log calls: the calls, not the bytes, 
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from datetime import timedelta
 from pathlib import Path
@@ -42,7 +43,8 @@ import rerun as rr
 
 from touchanything.devices.hand_pose import project_wilor
 from touchanything.devices.output_safety import temporary_path
-from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
+from touchanything.devices.snapshot import HANDS, TRACKER_ROLES, VIEW_NAMES
+from touchanything.devices.view_sets import view_label
 from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
 from touchanything.viz.frame_facts import FrameFacts
 from touchanything.viz.pressure_panel import BACKGROUND, unposed_as_nan
@@ -57,6 +59,8 @@ VALUE_GAP = 22
 """Columns from the left hand's value image to the right hand's (its 21 and the gap column of the PNG)."""
 VALUE_DTYPE = np.float16
 """The value images' type: 11 significant bits (a value in [0.5, 1] within 0.00025), half the bytes of float32."""
+NOT_USED_AT, NOT_USED_COLOUR = (8.0, 8.0), (150, 150, 150)
+"""Where, in image pixels, and in which colour a view the model does not use is labelled so."""
 MAP_DRAW_ORDER, VALUE_DRAW_ORDER = -10.0, -20.0
 """The coloured map is drawn over the value images (Rerun's defaults for images and depth images)."""
 FLUSH_SECONDS, FLUSH_BYTES = 0.5, 8 << 20
@@ -122,6 +126,8 @@ class RerunRecording:
         self._rows = ColumnBuffer(self._stream)
         self._videos: set[str] = set()
         self._image_size: dict[str, tuple[int, int]] = {}
+        self._unused: dict[str, bool] = {}
+        """Per view: marked "not used" now."""
         self._surfaces = HandSurfaces(self._rows)
         self._log_static()
 
@@ -145,6 +151,9 @@ class RerunRecording:
                                                  widths=[1.0] * len(SHOWN_METRICS)), static=True)
         log("engine", rr.SeriesLines(names=["latency ms", "engine step ms"]), static=True)
         log("world/hands", rr.Points3D.from_fields(radii=0.004, show_labels=False), static=True)
+        for view in VIEW_NAMES:
+            log(f"cameras/{view}/not_used", rr.Points2D.from_fields(labels=[view_label(view, False)], colors=[NOT_USED_COLOUR],
+                                                                     show_labels=True), static=True)
         log("cameras/ego/hands", rr.Points2D.from_fields(radii=2.5, show_labels=False), static=True)
         for kind in MAP_ENTITIES.values():
             log(f"pressure/{kind}", rr.EncodedImage.from_fields(media_type="image/png", magnification_filter="nearest",
@@ -182,14 +191,16 @@ class RerunRecording:
 
     def log_observation(self, frame: int, time_s: float, images: Mapping[str, np.ndarray], joints: np.ndarray,
                         valid: np.ndarray, measured: np.ndarray | None, facts: FrameFacts,
-                        trackers: Mapping[str, np.ndarray]) -> None:
+                        trackers: Mapping[str, np.ndarray], used: Collection[str] = VIEW_NAMES) -> None:
         """What the rig saw at `frame`: camera frames {view: (H, W, 3) uint8 RGB} (views logged as videos are
         skipped), joints (42, 3) with valid (2,), the measured map (2, 21, 21) (None: no glove) and its contact
-        as `facts` (of this frame) decided it, tracker poses {role: (7,) trans + rot w, x, y, z}."""
+        as `facts` (of this frame) decided it, tracker poses {role: (7,) trans + rot w, x, y, z}; `used`: the
+        views the model takes anything from (the others are marked "not used" from this frame on)."""
         at = (frame, time_s)
         for view, image in images.items():
             if view not in self._videos:
                 self._log_image(view, image, at)
+        self._mark_unused(used, at)
         self._log_skeletons(joints, valid, at)
         self._log_map("measured", measured, PRESSURE_LUT, 0.0, at)
         self._log_values("measured", measured, at)
@@ -226,6 +237,18 @@ class RerunRecording:
             if values is not None:
                 scalars = np.array([np.nan if values[n] is None else values[n] for n in SHOWN_METRICS], np.float64)
                 self._rows.put(f"metrics/{kind}", rr.Scalars, *at, scalars=scalars)
+
+    def _mark_unused(self, used: Collection[str], at: tuple[int, float]) -> None:
+        """Show the "not used" label on the views outside `used`, and take it off the others, where that changed
+        (its text and colour are static; a row places it, a clear takes it away)."""
+        for view in VIEW_NAMES:
+            unused = view not in used
+            if unused != self._unused.get(view, False):
+                self._unused[view] = unused
+                if unused:
+                    self._rows.put(f"cameras/{view}/not_used", rr.Points2D, *at, positions=np.array([NOT_USED_AT], np.float32))
+                else:
+                    self._rows.clear(f"cameras/{view}/not_used", *at)
 
     def _log_image(self, view: str, image: np.ndarray, at: tuple[int, float]) -> None:
         scale = self.target.image_scale

@@ -8,7 +8,14 @@ import argparse
 from pathlib import Path
 
 from touchanything.app.sessions.bundled import OUTPUT_DIR, SAMPLE_DIR, sample_episodes
-from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint
+from touchanything.app.sessions.engine_choice import (
+    ModelChoice,
+    add_device_argument,
+    add_onnx_argument,
+    choice_inputs,
+    default_checkpoint,
+    export_choice,
+)
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
 from touchanything.app.sessions.setting_choice import add_setting_arguments, picked_setting, setting_request
 from touchanything.devices.errors import UserError
@@ -30,6 +37,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help=f"video for --headless (default {DEMO_VIDEO} in the working directory)")
     parser.add_argument("--hand3d", action="store_true", help="add the pressure painted on 3D hands (measured | "
                                                               "predicted) to the comparison video (default: off)")
+    add_onnx_argument(parser)
     add_setting_arguments(parser)
     add_device_argument(parser)
     add_rerun_arguments(parser)
@@ -57,7 +65,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"demo      a Rerun recording holds one episode: {paths[0]} only (without --rerun the demo tours all {len(paths)})")
         paths = paths[:1]
     request = setting_request(args)
-    inputs = (*paths, *(request.inputs if request else (default_checkpoint(),)))
+    given = None if request else (export_choice(args.onnx, args.device) if args.onnx is not None
+                                  else ModelChoice(default_checkpoint(), device=args.device))
+    inputs = (*paths, *(request.inputs if request else choice_inputs(given)))
     rerun = rerun_target(args, inputs)
     problem = None if args.headless else display_problem()
     if problem:
@@ -65,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     if args.headless or problem:
         check_video_output(args.out, inputs, args.overwrite)
     picked = picked_setting(request, args.device)
-    choice = picked.model_choice(args.device) if picked else ModelChoice(default_checkpoint(), device=args.device)
+    choice = picked.model_choice(args.device) if picked else given
     views = picked.row.setting.views if picked else VIEW_NAMES
     if args.headless or problem:
         replay_to_video(paths, choice, views, args.out, args.hand3d, rerun)

@@ -17,8 +17,9 @@ from touchanything.app.sessions.rerun_output import add_rerun_arguments, check_r
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import add_overwrite_argument, check_report_folder, write_text
+from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.devices.view_sets import VIEW_HELP, VIEW_SETS, view_set_name
+from touchanything.devices.view_sets import VIEW_HELP, VIEW_SETS, view_set_name, views_used
 from touchanything.inference.evaluation.metrics import DETECTION_METRICS, EVENT_METRICS, METRICS
 from touchanything.inference.model.torch_device import (
     PRECISIONS,
@@ -133,9 +134,10 @@ def markdown(results: list[EvaluationResult], split: str, pose_only: str | None 
     return "\n".join(lines)
 
 
-def trajectory_frames(episode, prediction, gt, hand3d: bool = False):
+def trajectory_frames(episode, prediction, gt, hand3d: bool = False, used: tuple[str, ...] = VIEW_NAMES):
     """Comparison frames of one evaluated trajectory (stitched prediction against ground truth); `hand3d`: with
-    the pressure painted on the 3D hands (the episode's WiLoR poses)."""
+    the pressure painted on the 3D hands (the episode's WiLoR poses); `used`: the views the model took anything
+    from (the others are marked "not used")."""
     from touchanything.viz.comparison_video import comparison_frame
     from touchanything.viz.hand3d_panel import hand3d_panel
 
@@ -146,7 +148,8 @@ def trajectory_frames(episode, prediction, gt, hand3d: bool = False):
         hands = None
         if hand3d and episode.wilor is not None:
             hands = hand3d_panel(episode.wilor.joints[i].reshape(42, 3), episode.wilor.valid[i], gt[i], shown)
-        yield comparison_frame({v: im for v, im in images.items() if im is not None}, gt[i], shown, footer, hand3d=hands)
+        yield comparison_frame({v: im for v, im in images.items() if im is not None}, gt[i], shown, footer, hand3d=hands,
+                               used=used)
 
 
 def split_files(data: Path, split: str, split_file: Path | None, num_traj: int | None) -> list[Path]:
@@ -190,14 +193,16 @@ def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: s
     mine = files[group.rank::group.world]
     finished = []
     suffix = f"_{name}" if name else "_pose_only" if blank else ""
+    used = views_used(VIEW_SETS[views], blank or model.config.blank_images)
     total = sum(_frame_count(f) for f in mine) if group.is_main else None
     with tqdm(total=total, unit=" frames", desc=f"eval {views}{suffix.replace('_', ' ')}", disable=not group.is_main) as bar:
         def done(row, episode, prediction, gt) -> None:
             label = f"{episode.scene}_{episode.task}_{episode.trajectory_id}_{views}{suffix}"
             if args.video:
-                write_comparison_video(args.out / f"{label}.mp4", trajectory_frames(episode, prediction.stitched, gt, args.hand3d))
+                write_comparison_video(args.out / f"{label}.mp4", trajectory_frames(episode, prediction.stitched, gt, args.hand3d,
+                                                                                    used))
             if recordings is not None:
-                recordings.add(label, episode, prediction.stitched, gt)
+                recordings.add(label, episode, prediction.stitched, gt, used)
             finished.append(row)
             bar.set_postfix(trajectories=f"{len(finished)}/{len(mine)}")
 

@@ -7,8 +7,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from touchanything.devices.output_safety import check_output
+from touchanything.devices.output_safety import add_overwrite_argument, check_output
 from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.inference.engine.onnx_manifest import MANIFEST, is_export
 
 if TYPE_CHECKING:
     from touchanything.inference.engine.engine_runtime import TorchRuntime
@@ -19,8 +20,11 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("export-onnx", help="export a checkpoint's streaming graphs to ONNX (fp32, int8)")
     parser.add_argument("--checkpoint", type=Path, required=True, help="model checkpoint in the official format")
     parser.add_argument("--config", type=Path, help="config.yaml (default: beside the checkpoint)")
-    parser.add_argument("--out", type=Path, required=True, help="output folder (encoder/head graphs, engine.json)")
+    parser.add_argument("--out", type=Path, required=True,
+                        help="output folder (encoder/head graphs, engine.json), built as a whole: an earlier export "
+                             "there is replaced entirely")
     parser.add_argument("--int8", action="store_true", help="also write int8 graphs (dynamic quantisation)")
+    add_overwrite_argument(parser, "--out when it is a non-empty folder that holds no earlier export")
     parser.set_defaults(run=run)
 
 
@@ -43,13 +47,14 @@ def run(args: argparse.Namespace) -> int:
     from touchanything.inference.engine.onnx_runtime import OnnxRuntime
     from touchanything.inference.model.checkpoint import load_model
 
-    check_output(args.out, (args.checkpoint, args.config), folder=True)
+    overwrite = args.overwrite or is_export(args.out)
+    check_output(args.out, (args.checkpoint, args.config), overwrite, whole=True)
     model = load_model(args.checkpoint, args.config)
-    manifest = export_onnx(model, args.out, int8=args.int8, source=str(args.checkpoint))
+    manifest = export_onnx(model, args.out, int8=args.int8, source=str(args.checkpoint.resolve()), overwrite=overwrite)
     reference = TorchRuntime(model)
     for precision, files in manifest["files"].items():
         sizes = ", ".join(f"{name} {(args.out / name).stat().st_size / 1e6:.1f} MB" for name in files.values())
         difference = agreement(reference, OnnxRuntime(args.out, precision), model.config.image_size)
         print(f"{precision}: {sizes}; max |ONNX − torch| on a random window: {difference:.2e}")
-    print(f"engine manifest: {args.out / 'engine.json'}")
+    print(f"engine manifest: {args.out / MANIFEST} (weights sha256 {manifest['weights_sha256'][:12]}…)")
     return 0

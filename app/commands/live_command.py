@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.app.sessions.engine_choice import add_device_argument
+from touchanything.app.sessions.engine_choice import add_device_argument, add_onnx_argument
 from touchanything.app.sessions.rerun_output import (
     LIVE_IMAGE_SCALE,
     add_rerun_arguments,
@@ -31,6 +31,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--scene", type=Path, required=True, help="scene file (TOML), e.g. scenes/sim.toml")
     parser.add_argument("--headless", action="store_true", help="no window: run for --seconds and print status")
     parser.add_argument("--seconds", type=float, default=10.0, help="how long --headless runs (default 10)")
+    add_onnx_argument(parser)
     add_setting_arguments(parser)
     add_device_argument(parser, default=None)
     add_rerun_arguments(parser)
@@ -38,11 +39,13 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def open_live_session(scene_path: Path, device: str | None = None, picked: PickedSetting | None = None):
+def open_live_session(scene_path: Path, device: str | None = None, picked: PickedSetting | None = None,
+                      onnx: Path | None = None):
     """The scene's rig and model as a LiveSession (not started), the model on `device` when given (else the
-    scene's), the `picked` setting's model, tier and views instead of the scene's when given; a model that fails
-    to load leaves the session without predictions, with the reason in its message."""
-    from touchanything.app.sessions.engine_choice import build_engine
+    scene's), the `picked` setting's model, tier and views, or the `onnx` export (`export_choice`), instead of
+    the scene's when given; a model that fails to load leaves the session without predictions, with the reason
+    in its message (a folder that is no export is a UserError)."""
+    from touchanything.app.sessions.engine_choice import build_engine, export_choice
     from touchanything.app.sessions.live_session import LiveSession
     from touchanything.app.sessions.scene import read_scene
     from touchanything.app.sessions.scene_rig import LiveRig
@@ -53,6 +56,8 @@ def open_live_session(scene_path: Path, device: str | None = None, picked: Picke
     choice = scene.model if device is None else dataclasses.replace(scene.model, device=device)
     if picked is not None:
         choice = picked.model_choice(choice.device)
+    elif onnx is not None:
+        choice = export_choice(onnx, choice.device)
     try:
         engine, message = build_engine(choice, VIEW_NAMES), ""
     except UserError as exc:
@@ -107,8 +112,8 @@ def run(args: argparse.Namespace) -> int:
 
         raise UserError(f"cannot open the dashboard: {problem}; use --headless")
     request = setting_request(args)
-    target = rerun_target(args, (args.scene, *(request.inputs if request else ())), LIVE_IMAGE_SCALE)
-    session = open_live_session(args.scene, args.device, picked_setting(request, args.device))
+    target = rerun_target(args, (args.scene, args.onnx, *(request.inputs if request else ())), LIVE_IMAGE_SCALE)
+    session = open_live_session(args.scene, args.device, picked_setting(request, args.device), args.onnx)
     session.use_atlas(args.atlas)
     engine = session.live and session.live.engine
     recording = target and open_recording(target, f"live {args.scene.stem}", session_properties(session.choice, engine))

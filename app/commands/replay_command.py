@@ -7,7 +7,15 @@ import argparse
 from pathlib import Path
 
 from touchanything.app.sessions.bundled import OUTPUT_DIR
-from touchanything.app.sessions.engine_choice import ModelChoice, add_device_argument, default_checkpoint, view_set_argument
+from touchanything.app.sessions.engine_choice import (
+    ModelChoice,
+    add_device_argument,
+    add_onnx_argument,
+    choice_inputs,
+    default_checkpoint,
+    export_choice,
+    view_set_argument,
+)
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
 from touchanything.app.sessions.setting_choice import PickedSetting, add_setting_arguments, picked_setting, setting_request
 from touchanything.devices.output_safety import add_overwrite_argument
@@ -18,8 +26,9 @@ from touchanything.viz.display import display_problem
 
 
 def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
-    """The model, runtime, views and device options, and `--setting` (which decides all but the device)."""
-    parser.add_argument("--checkpoint", type=Path, help="model checkpoint (default: the bundled nano model)")
+    """The model, runtime, views and device options, `--onnx`, and `--setting` (which decides all but the device)."""
+    parser.add_argument("--checkpoint", type=Path, help="model checkpoint (default: the bundled nano model; with --onnx "
+                                                        "the checkpoint the export was made from)")
     parser.add_argument("--config", type=Path, help="config.yaml (default: beside the checkpoint)")
     parser.add_argument("--views", nargs="+", type=view_set_argument, metavar="VIEWS",
                         help=f"views the model uses, one or more ({VIEW_HELP}; ego is required for a prediction; "
@@ -28,6 +37,7 @@ def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
                         help="torch, or onnx (ONNX Runtime on the CPU; the model is exported on first use into the user "
                              "cache; default torch)")
     parser.add_argument("--precision", help="torch: fp32, bf16 (fp16, tf32 on a GPU); onnx: fp32, int8 (default fp32)")
+    add_onnx_argument(parser)
     add_setting_arguments(parser)
     add_device_argument(parser)
 
@@ -48,10 +58,11 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def model_choice(args: argparse.Namespace, picked: PickedSetting | None) -> ModelChoice:
-    """The `--setting`'s model and tier, else the options' (the bundled nano, torch fp32 by default)."""
-    if picked is not None:
-        return picked.model_choice(args.device)
+def model_choice(args: argparse.Namespace) -> ModelChoice:
+    """The options' model and tier: the `--onnx` export, else the checkpoint (the bundled nano, torch fp32 by
+    default)."""
+    if args.onnx is not None:
+        return export_choice(args.onnx, args.device, args.checkpoint, args.config, args.runtime, args.precision)
     return ModelChoice(args.checkpoint or default_checkpoint(), args.config, args.runtime or "torch",
                        args.precision or "fp32", args.device)
 
@@ -73,14 +84,15 @@ def run(args: argparse.Namespace) -> int:
     from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
 
     request = setting_request(args)
-    inputs = (args.episode, *(request.inputs if request else (args.checkpoint or default_checkpoint(), args.config)))
+    given = None if request else model_choice(args)
+    inputs = (args.episode, *(request.inputs if request else choice_inputs(given)))
     rerun = rerun_target(args, inputs)
     headless = args.headless or args.out is not None
     out = args.out or default_video(args.episode)
     if headless:
         check_video_output(out, inputs, args.overwrite)
     picked = picked_setting(request, args.device)
-    choice, views = model_choice(args, picked), selected_views(args, picked)
+    choice, views = picked.model_choice(args.device) if picked else given, selected_views(args, picked)
     if not headless and rerun is not None and (problem := display_problem()):
         print(f"no dashboard: {problem}. Writing the Rerun recording only (--headless: the comparison video too).")
         replay_to_video([args.episode], choice, views, None, rerun=rerun)

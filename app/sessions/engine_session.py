@@ -1,12 +1,20 @@
 """What replay and live sessions share: snapshots handed to the live engine (latest wins), predictions
 paired with the measured pressure of their frame, running official metrics, history for the plots,
-per-stage timings, and the model / view / threshold switches (never blocking the caller)."""
+per-stage timings, and the model / view / threshold switches (never blocking the caller).
+
+Where the figures restart (docs/dashboard.md lists it for the user): a seek, an episode's start (loop, tour)
+and every switch of the setting — model, tier, prediction rate, views — forget the engine's window, the
+shown prediction (none until the engine predicts again; the shown frame's measurement stays), the running
+metrics and the plots' history; a setting switch also forgets the engine's step and stage times (they
+describe the setting). A new contact threshold restarts the metrics and their plot lines and decides the
+shown prediction's facts again (same model, same frame)."""
 from __future__ import annotations
 
 import dataclasses
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +35,7 @@ from touchanything.devices.errors import UserError
 from touchanything.devices.rate_meter import RateMeter, StageMeans
 from touchanything.devices.snapshot import POSE_FROM_CAMERA, VIEW_NAMES, Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.devices.view_sets import views_used
 from touchanything.inference.engine.live_engine import LiveEngine
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.engine.streaming_engine import StreamingEngine
@@ -59,7 +68,12 @@ class EngineSession:
         self._lock = threading.Lock()
         self._recent: dict[int, tuple[Snapshot, np.ndarray | None]] = {}
         self._snapshot: Snapshot | None = None
-        self._prediction: tuple[Prediction, np.ndarray | None, FrameFacts] | None = None
+        self._prediction: tuple[Prediction | None, np.ndarray | None, FrameFacts] | None = None
+        """What the maps show: the newest prediction (None after a restart, until the engine predicts again), the
+        measured pressure of its frame and their facts."""
+        self._engine = engine
+        """The engine whose predictions count: one still in flight from an engine switched away is dropped."""
+        self._pose_only = engine is not None and engine.blank
         self._history = {name: deque(maxlen=PLOT_SAMPLES) for name in ("volumetric_iou", "contact_iou", "latency_ms")}
         self._stages = StageMeans()
         self._steps: deque[float] = deque(maxlen=STEP_WINDOW)
@@ -112,7 +126,7 @@ class EngineSession:
         self.frames.tick()
         self._stages.add(snapshot.stage_ms)
         if self.rerun is not None:
-            self.rerun.observe(snapshot, truth, self.threshold)
+            self.rerun.observe(snapshot, truth, self.threshold, self._views_used())
         if self.live is not None and not predict:
             self.live.skip()
         elif self.live is not None:
@@ -121,9 +135,10 @@ class EngineSession:
 
     def _on_prediction(self, prediction: Prediction) -> None:
         """Engine thread: keep the prediction with its facts (decided once, here, for every panel and the Rerun
-        recording), feed the metrics (frames before a seek are ignored)."""
+        recording), feed the metrics (frames submitted before a restart, and an old engine's predictions, are
+        ignored)."""
         with self._lock:
-            if prediction.frame_index not in self._recent:
+            if prediction.frame_index not in self._recent or self.live.engine is not self._engine:
                 return
             snapshot, truth = self._recent[prediction.frame_index]
             self._predictions.tick()
@@ -142,19 +157,36 @@ class EngineSession:
             if self.rerun is not None:
                 self.rerun.predicted(prediction, snapshot, truth, facts)
 
-    def _facts(self, prediction: Prediction, truth: np.ndarray | None) -> FrameFacts:
-        """The prediction's facts at the session's threshold, with the metrics as they stand (none before any
-        ground truth)."""
+    def _facts(self, prediction: Prediction | None, truth: np.ndarray | None) -> FrameFacts:
+        """The facts of `prediction` (None: of its frame's measurement alone) at the session's threshold, with the
+        metrics as they stand (none before any ground truth)."""
+        if prediction is None:
+            return frame_facts(None, None, truth, self.bend, self.threshold)
         return frame_facts(prediction.pressure, prediction.hands_predicted, truth, self.bend, self.threshold,
                            self.metrics if self._truth_seen else None)
 
     def restart(self) -> None:
-        """Forget the window, the pending pairs and the metrics (after a seek or a new session)."""
+        """Start the figures afresh (after a seek, at an episode's start): see the module."""
+        self._restart(setting=False)
+
+    def _restart(self, setting: bool, change: Callable[[], None] = lambda: None) -> None:
+        """Apply `change` (to the setting) and restart the figures in one step under the lock, so that no state
+        shows the one without the other; `setting`: also forget the step and stage times. The engine's window
+        is reset before its next step."""
         with self._lock:
+            change()
+            shown = self._recent.get(self._snapshot.frame_index) if self._snapshot is not None else None
+            truth = shown[1] if shown is not None and shown[0] is self._snapshot else None
             self._recent.clear()
             self.metrics.reset()
+            self._truth_seen = False
             for values in self._history.values():
                 values.clear()
+            self._prediction = None if truth is None else (None, truth, self._facts(None, truth))
+            if setting:
+                self._steps.clear()
+                self._stages = StageMeans()
+                self._predictions.reset()
         if self.live is not None:
             self.live.call(lambda: self.live.engine.reset())
 
@@ -174,12 +206,17 @@ class EngineSession:
                                          None, stats.dropped, detail if self.live.error is None else f"error: {self.live.error}"))
             return SessionState(
                 snapshot=snapshot, prediction=prediction, truth=truth, facts=facts, metric_frames=self.metrics.frames,
+                views_used=self._views_used(),
                 history={name: np.array(values, np.float64) for name, values in self._history.items()},
                 stage_ms=self._stages.means(), engine_fps=0.0 if paused else self._predictions.rate(), sources=tuple(rows),
                 playback=playback, model=self._model_line(snapshot), message=self.message,
                 recording=self.recording_status(), setting=setting_name(self.choice, self.views) if self.live else "",
                 step_p99_ms=float(np.percentile(self._steps, 99)) if len(self._steps) >= MIN_STEPS else None,
                 atlas=self.atlas, atlas_note=self.atlas_note)
+
+    def _views_used(self) -> tuple[str, ...]:
+        """The views the running model takes anything from (none without a model)."""
+        return views_used(self.views, self._pose_only) if self.live is not None else ()
 
     def _model_line(self, snapshot: Snapshot | None) -> str:
         """The model's label, with the illustrative-only note while the poses come from the camera."""
@@ -194,8 +231,11 @@ class EngineSession:
         return None if t_us is None else time.monotonic() * 1e3 - t_us / 1e3
 
     def set_views(self, views: tuple[str, ...]) -> None:
-        """Views the model may use from the next frame on ("ego" off: no prediction, with the reason)."""
-        self.views = tuple(v for v in VIEW_NAMES if v in views)
+        """Views the model may use from the next frame on ("ego" off: no prediction, with the reason); a change
+        restarts the figures."""
+        chosen = tuple(v for v in VIEW_NAMES if v in views)
+        if chosen != self.views:
+            self._restart(setting=True, change=lambda: setattr(self, "views", chosen))
 
     def set_threshold(self, threshold: float) -> None:
         """Contact threshold for the metrics and indicators (official 0.1); the metrics and their history
@@ -256,12 +296,14 @@ class EngineSession:
             return
         finally:
             self._loading = False
+        label, note = model_label(choice, engine), illustrative_note(choice, camera_pose=True)
+
+        def use() -> None:
+            self._engine, self._pose_only, self.choice, self._model, self._camera_note = engine, engine.blank, choice, label, note
+
+        self._restart(setting=True, change=use)  # before the engine runs: its predictions then count
         if self.live is None:
             self.live = LiveEngine(engine, on_prediction=self._on_prediction).start()
         else:
             self.live.replace_engine(engine)
-        with self._lock:
-            self._steps.clear()
-        self.choice, self._model = choice, model_label(choice, engine)
-        self._camera_note = illustrative_note(choice, camera_pose=True)
         self.message = f"running {self._model}"

@@ -16,6 +16,7 @@ from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.rig.replay import ReplaySource
 from touchanything.devices.snapshot import Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.devices.view_sets import views_used
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
@@ -121,7 +122,8 @@ def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: Replay
                   rerun: RerunRecording | None = None) -> Iterator[np.ndarray | None]:
     """Yield, for every frame of the source's episode (a ReplaySource with speed None: every frame is
     processed), its comparison frame drawn by `renderer` (None: nothing is drawn, None is yielded) and log
-    it to `rerun` when given; the source is closed at the end."""
+    it to `rerun` when given, in both the views the engine does not use (`views_used`) marked "not used"; the
+    source is closed at the end."""
     episode = source.episode
     gt = None
     if episode.pressure is not None:
@@ -132,6 +134,7 @@ def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: Replay
     if rerun is not None:
         log_episode_videos(rerun, episode, source.config.views)
     latest: Prediction | None = None
+    used = views_used(engine.config.views, engine.blank)
     with contextlib.closing(source):
         for snapshot in source:
             summary.add_pose(snapshot)
@@ -153,9 +156,9 @@ def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: Replay
             summary.metrics = facts.cumulative
             summary.frames += 1
             if rerun is not None:
-                _log_frame(rerun, episode, snapshot, truth, this if shown is not None else None, facts)
+                _log_frame(rerun, episode, snapshot, truth, this if shown is not None else None, facts, used)
             progress(snapshot.frame_index)
-            yield None if renderer is None else renderer.render(snapshot, truth, shown, latest, facts)
+            yield None if renderer is None else renderer.render(snapshot, truth, shown, latest, facts, used)
 
 
 def log_episode_videos(rerun: RerunRecording, episode: Episode, views: tuple[str, ...]) -> None:
@@ -166,12 +169,12 @@ def log_episode_videos(rerun: RerunRecording, episode: Episode, views: tuple[str
 
 
 def _log_frame(rerun: RerunRecording, episode: Episode, snapshot: Snapshot, truth: np.ndarray | None,
-               prediction: Prediction | None, facts: FrameFacts) -> None:
-    """One replayed frame into the recording: what the episode holds, and the prediction of this frame, with
-    the frame's facts."""
+               prediction: Prediction | None, facts: FrameFacts, used: tuple[str, ...]) -> None:
+    """One replayed frame into the recording: what the episode holds (the views the model does not use marked
+    so), and the prediction of this frame, with the frame's facts."""
     time_s = float(episode.timestamps_us[snapshot.frame_index]) / 1e6
     rerun.log_observation(snapshot.frame_index, time_s, snapshot.images, snapshot.joints, snapshot.joints_valid, truth,
-                          facts, snapshot.trackers)
+                          facts, snapshot.trackers, used)
     if prediction is not None:
         rerun.log_prediction(snapshot.frame_index, time_s, prediction.pressure, facts, snapshot.joints,
                              snapshot.joints_valid, truth, prediction.latency_ms, prediction.timings_ms.get("total"))

@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from touchanything.devices.snapshot import Snapshot
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.live_engine import ENGINE_NICENESS, lower_priority
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.evaluation.metrics import CONTACT_THRESHOLD
@@ -58,13 +58,14 @@ class RerunSink:
             self._queue.append(job)
             self._wake.notify()
 
-    def observe(self, snapshot: Snapshot, truth: np.ndarray | None, threshold: float = CONTACT_THRESHOLD) -> None:
+    def observe(self, snapshot: Snapshot, truth: np.ndarray | None, threshold: float = CONTACT_THRESHOLD,
+                used: tuple[str, ...] = VIEW_NAMES) -> None:
         """The rig's snapshot and its measured pressure (2, 21, 21) or None, whose facts (contact at `threshold`)
-        the logging thread derives."""
+        the logging thread derives; `used`: the views the model takes anything from now."""
         def job() -> None:
             facts = frame_facts(None, None, truth, self.bend, threshold)
             self.recording.log_observation(snapshot.frame_index, self.time_of(snapshot), snapshot.images, snapshot.joints,
-                                           snapshot.joints_valid, truth, facts, snapshot.trackers)
+                                           snapshot.joints_valid, truth, facts, snapshot.trackers, used)
         self._put(job)
 
     def predicted(self, prediction: Prediction, snapshot: Snapshot, truth: np.ndarray | None, facts: FrameFacts) -> None:

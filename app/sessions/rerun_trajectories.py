@@ -11,7 +11,7 @@ import numpy as np
 from touchanything.app.sessions.rerun_output import merge_recordings
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.output_safety import temporary_path
-from touchanything.devices.snapshot import TRACKER_ROLES
+from touchanything.devices.snapshot import TRACKER_ROLES, VIEW_NAMES
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.frame_facts import frame_facts
 from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
@@ -27,22 +27,24 @@ class TrajectoryRecordings:
         self.parts_dir = temporary_path(out.with_suffix(".parts"))
         self.parts: list[Path] = []
 
-    def add(self, name: str, episode: Episode, predicted: np.ndarray, truth: np.ndarray) -> None:
+    def add(self, name: str, episode: Episode, predicted: np.ndarray, truth: np.ndarray,
+            used: tuple[str, ...] = VIEW_NAMES) -> None:
         """One trajectory: its frames, poses, trackers and measured maps beside the predicted (T, 2, 21, 21)
-        (NaN where no clip covers a frame), shown on the ground truth's layout mask as in the videos."""
+        (NaN where no clip covers a frame), shown on the ground truth's layout mask as in the videos; the views
+        outside `used` (those the model took nothing from) marked "not used"."""
         self.parts_dir.mkdir(parents=True, exist_ok=True)
         part = self.parts_dir / f"{len(self.parts):05d}.rrd"
         recording = RerunRecording(RerunTarget(part), name, {**self.properties, "episode": str(episode.path)})
         metrics = RunningMetrics(self.bend)
         try:
             for i in range(episode.num_frames):
-                self._frame(recording, episode, i, predicted[i], truth[i], metrics)
+                self._frame(recording, episode, i, predicted[i], truth[i], metrics, used)
         finally:
             recording.close()
         self.parts.append(part)
 
     def _frame(self, recording: RerunRecording, episode: Episode, i: int, predicted: np.ndarray, truth: np.ndarray,
-               metrics: RunningMetrics) -> None:
+               metrics: RunningMetrics, used: tuple[str, ...]) -> None:
         time_s = float(episode.timestamps_us[i]) / 1e6
         images = {v: image for v, source in episode.views.items() if (image := source.read(i)) is not None}
         hands = episode.wilor
@@ -53,12 +55,12 @@ class TrajectoryRecordings:
         shown = np.where(np.isnan(truth), np.nan, predicted)
         if not np.isfinite(shown).any():
             facts = frame_facts(None, None, truth, self.bend)
-            recording.log_observation(i, time_s, images, joints, valid, truth, facts, trackers)
+            recording.log_observation(i, time_s, images, joints, valid, truth, facts, trackers, used)
             recording.log_prediction(i, time_s, None, facts, joints, valid, truth, None, None)
             return
         metrics.add(shown, truth)
         facts = frame_facts(shown, None, truth, self.bend, metrics=metrics)
-        recording.log_observation(i, time_s, images, joints, valid, truth, facts, trackers)
+        recording.log_observation(i, time_s, images, joints, valid, truth, facts, trackers, used)
         recording.log_prediction(i, time_s, shown, facts, joints, valid, truth, None, None)
 
     def close(self) -> None:

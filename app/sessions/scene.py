@@ -13,7 +13,8 @@
                           "left_wrist" | "right_wrist"
     [pose]                the calibration that brings mocap joints into the head-camera frame
     [model]               checkpoint, runtime, precision, device (default: the bundled nano model, torch fp32,
-                          device auto: the first CUDA GPU when there is one, else the CPU)
+                          device auto: the first CUDA GPU when there is one, else the CPU); onnx_dir = an
+                          export-onnx folder to run (runtime onnx; checkpoint: the one it was exported from)
     [simulator]           episode = a recorded episode the simulated rig replays through the real
                           protocols (pty gloves, Rokoko UDP to [hands]; cameras are its video files in
                           [cameras]); link_dir for the gloves' serial links
@@ -31,7 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint
+from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint, export_choice
 from touchanything.app.sessions.scene_values import check_types
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig
 from touchanything.devices.errors import UserError
@@ -173,11 +174,17 @@ def _device(section: str, role: str, settings: dict, base: Path, kind_key: str =
 
 
 def _model(settings: dict, base: Path) -> ModelChoice:
+    """[model], its paths against the scene's folder; with `onnx_dir`, that export (`export_choice`)."""
     settings = dict(settings)
-    for key in ("checkpoint", "config"):
+    for key in ("checkpoint", "config", "onnx_dir"):
         if key in settings:
             settings[key] = _resolve("model", key, settings[key], base)
-    return _build(ModelChoice, "model", {"checkpoint": default_checkpoint(), **settings})
+    choice = _build(ModelChoice, "model", {"checkpoint": default_checkpoint(), **settings})
+    if choice.onnx_dir is None:
+        return choice
+    export = export_choice(choice.onnx_dir, choice.device, settings.get("checkpoint"), choice.config,
+                           settings.get("runtime"), settings.get("precision"))
+    return dataclasses.replace(export, every=choice.every, output=choice.output)
 
 
 def _simulator(settings: dict, hands: dict, base: Path) -> SimulatedRigConfig:

@@ -23,7 +23,7 @@ from touchanything.inference.evaluation.atlas import (
 from touchanything.inference.evaluation.bench_setting import NAME_HELP
 
 PROBE_CLIP_FRAMES = 60
-ENGINE_OPTIONS = ("checkpoint", "config", "runtime", "precision", "views")
+ENGINE_OPTIONS = ("checkpoint", "config", "runtime", "precision", "views", "onnx")
 """The options a `--setting` decides (a command given both is refused)."""
 
 

@@ -10,7 +10,6 @@ are parameters, so tests can point them at real stand-ins (a folder of symlinks 
 """
 from __future__ import annotations
 
-import contextlib
 import os
 import re
 import time
@@ -27,6 +26,7 @@ from touchanything.devices.hardware.jq_glove import SERIAL_BY_ID, SERIAL_ERRORS,
 from touchanything.devices.hardware.jq_protocol import JQStreamParser
 from touchanything.devices.hardware.opencv_camera import OpenCVCameraConfig, negotiated_format, request_format
 from touchanything.devices.hardware.openvr_trackers import INSTALL_HINT
+from touchanything.devices.quiet_stderr import quiet_opencv
 
 T = TypeVar("T")
 
@@ -87,17 +87,6 @@ class FoundTracker:
 
 
 # --- OpenCV cameras -------------------------------------------------------------------------------------
-
-
-@contextlib.contextmanager
-def quiet_opencv() -> Iterator[None]:
-    """Silence OpenCV's logging (a failed open warns on stderr) for the duration, then restore it."""
-    previous = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
-    try:
-        yield
-    finally:
-        cv2.utils.logging.setLogLevel(previous)
 
 
 def video_devices(dev: Path = DEV) -> list[str]:

@@ -35,6 +35,7 @@ from touchanything.devices.hardware.threaded_source import (
     check_backoff,
     now_us,
 )
+from touchanything.devices.quiet_stderr import quiet_opencv
 
 MAX_CATCH_UP_S = 1.0
 """A file reader further behind its schedule than this (a suspended machine) restarts the schedule
@@ -112,10 +113,12 @@ class OpenCVCamera(CameraSource):
         self._frames_this_pass = 0
 
     def _open(self) -> None:
-        if self.config.is_file:
-            self._open_file(Path(self.config.source))
-        else:
-            self._open_camera()
+        """Open the source; OpenCV's own warnings are kept quiet (a failure is this adapter's one message)."""
+        with quiet_opencv():
+            if self.config.is_file:
+                self._open_file(Path(self.config.source))
+            else:
+                self._open_camera()
         self._next = self._frames_this_pass = 0
         self._anchor_s = now_us() / 1e6
 

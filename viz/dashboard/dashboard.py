@@ -240,18 +240,18 @@ class Dashboard:
     def _update(self, state: SessionState) -> bool:
         """Bring what is shown up to `state`; True when anything on screen changed."""
         now_us = time.monotonic_ns() / 1000
-        views = self.session.views
         prediction, facts = state.prediction, state.facts
-        new_snapshot = self._changed("snapshot", state.snapshot) | self._changed("views", views)
-        if new_snapshot:
+        new_prediction = self._changed("prediction", prediction)
+        new_snapshot = self._changed("snapshot", state.snapshot) | self._changed("views", state.views_used)
+        if new_snapshot or (new_prediction and prediction is None):  # restarted figures: the old discs go too
             shown = None if prediction is None or facts is None else prediction.pressure
             pressure = None if shown is None else unposed_as_nan(shown, facts.posed)  # the skeleton's discs, as the map
-            for view in VIEW_NAMES:
-                self.cameras[view].show(camera_panel(state.snapshot, view, view in views, *CAMERA_TEXTURE, pressure))
-            if state.snapshot is not None:
+            for view in VIEW_NAMES if new_snapshot else ("ego",):
+                self.cameras[view].show(camera_panel(state.snapshot, view, view in state.views_used, *CAMERA_TEXTURE,
+                                                     pressure))
+            if new_snapshot and state.snapshot is not None:
                 self.stats.camera_lag_ms.append((now_us - state.snapshot.t_us) / 1e3)
         settings = (self.session.threshold, self.outline, state.truth is None)
-        new_prediction = self._changed("prediction", prediction)
         new_maps = new_prediction | self._changed("facts", facts) | self._changed("settings", settings)
         if new_maps:  # everything the prediction's facts decide, together: the panels never disagree
             for name, (image, title) in pressure_views(state, CELL, self.session.threshold, self.outline).items():

@@ -5,10 +5,10 @@ import cv2
 import numpy as np
 
 from touchanything.devices.snapshot import HANDS, Snapshot
-from touchanything.devices.view_sets import VIEW_LABELS
+from touchanything.devices.view_sets import view_label
 from touchanything.viz.dashboard.dashboard_state import SessionState
 from touchanything.viz.hand_projection import draw_hands
-from touchanything.viz.pressure_panel import BACKGROUND, MAP_TITLES, pressure_maps, put_text, unposed_as_nan
+from touchanything.viz.pressure_panel import BACKGROUND, MAP_TITLES, dimmed, pressure_maps, put_text, unposed_as_nan
 
 
 def blank(width: int, height: int, text: str) -> np.ndarray:
@@ -21,19 +21,19 @@ def blank(width: int, height: int, text: str) -> np.ndarray:
 def camera_panel(snapshot: Snapshot | None, view: str, used: bool, width: int, height: int,
                  pressure: np.ndarray | None) -> np.ndarray:
     """One camera, downscaled to (height, width); the head camera carries the hand skeletons with the
-    predicted pressure on their joints; a view the model does not use is dimmed and says so."""
+    predicted pressure on their joints; a view the model does not use (`used` False) is dimmed and labelled
+    "… — not used" (`view_label`)."""
     image = None if snapshot is None else snapshot.images.get(view)
     if image is None:
-        panel = blank(width, height, VIEW_LABELS[view])
+        panel = blank(width, height, view_label(view, used))
         put_text(panel, "no image", (10, 44), 0.55)
         return panel
     small = cv2.resize(image, (width, height), interpolation=cv2.INTER_LINEAR)
     if view == "ego":
         small = draw_hands(small, snapshot.joints, snapshot.joints_valid, pressure)
     if not used:
-        small = (small * 0.35).astype(np.uint8)
-        put_text(small, "not used by the model", (6, 32), 0.4)
-    put_text(small, VIEW_LABELS[view], (6, 16), 0.4)
+        small = dimmed(small)
+    put_text(small, view_label(view, used), (6, 16), 0.4)
     return small
 
 

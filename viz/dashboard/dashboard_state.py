@@ -8,7 +8,7 @@ from typing import Protocol
 
 import numpy as np
 
-from touchanything.devices.snapshot import Snapshot
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.evaluation.atlas import AtlasRow
 from touchanything.viz.frame_facts import FrameFacts, Metrics
@@ -43,10 +43,13 @@ class Playback:
 class SessionState:
     """One consistent picture, published by the session and read by the render loop.
 
-    snapshot: the newest camera frame; prediction: the newest prediction and truth: the (2, 21, 21)
-    measured pressure of the prediction's frame (None without a glove / ground truth); facts: the prediction's
-    `FrameFacts` (posed and measured hands, contact lamps, the official metrics as they stood after it: what
-    every panel shows of it); history: recent
+    snapshot: the newest camera frame; prediction: the newest prediction (None before the first, and after the
+    figures restarted — a seek, a switch — until the engine predicts again) and truth: the (2, 21, 21)
+    measured pressure of the prediction's frame (without a prediction: of the frame shown when the figures
+    restarted; None without a glove / ground truth); facts: the prediction's `FrameFacts` (posed and measured
+    hands, contact lamps, the official metrics as they stood after it: what every panel shows of it);
+    metric_frames: the frames the running metrics count; views_used: the views the running model takes
+    anything from (`view_sets.views_used`: none for a pose-only model, none without a model); history: recent
     series by name (volumetric_iou, contact_iou rolling; latency_ms), oldest first; stage_ms: mean
     engine stage times over recent steps; engine_fps: predictions per second; sources: device rows;
     playback: None in live mode; model: the running model and tier; message: the latest notice; setting: the
@@ -59,6 +62,7 @@ class SessionState:
     truth: np.ndarray | None = None
     facts: FrameFacts | None = None
     metric_frames: int = 0
+    views_used: tuple[str, ...] = VIEW_NAMES
     history: dict[str, np.ndarray] = field(default_factory=dict)
     stage_ms: dict[str, float] = field(default_factory=dict)
     engine_fps: float = 0.0

@@ -1,0 +1,234 @@
+"""Issue 37: an ONNX export carries the SHA-256 of the weights it was made from (in engine.json and in every
+graph file), running it beside other weights is refused naming both, exporting again replaces the whole
+folder, the user cache is keyed and checked by the same digest, and `replay`/`demo`/`live` run an export
+folder with `--onnx DIR`."""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import shutil
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from tests.conftest import write_episode
+from touchanything.app.cli import main
+from touchanything.app.commands.live_command import open_live_session
+from touchanything.app.sessions.bundled import MODELS_DIR
+from touchanything.app.sessions.scene import read_scene
+from touchanything.devices.errors import UserError
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.live_engine import LiveEngine
+from touchanything.inference.engine.onnx_cache import onnx_cache_dir
+from touchanything.inference.engine.onnx_export import weights_sha256
+from touchanything.inference.engine.onnx_runtime import OnnxRuntime
+from touchanything.inference.engine.streaming_engine import StreamingEngine
+from touchanything.inference.model.checkpoint import load_model, save_checkpoint
+
+NANO = MODELS_DIR / "nano" / "best_model.pth"
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+
+
+def reference_sha256(model: torch.nn.Module) -> str:
+    """The documented definition, written out here: every state-dict entry in name order as
+    "name|dtype|shape|" followed by its raw bytes."""
+    digest = hashlib.sha256()
+    for name in sorted(model.state_dict()):
+        tensor = model.state_dict()[name].detach().cpu().contiguous()
+        digest.update(f"{name}|{tensor.dtype}|{tuple(tensor.shape)}|".encode())
+        digest.update(bytes(tensor.numpy().data))
+    return digest.hexdigest()
+
+
+def one_error_line(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+@pytest.fixture(scope="module")
+def nano_export(tmp_path_factory) -> Path:
+    """The bundled nano exported (fp32 only) by the command line."""
+    out = tmp_path_factory.mktemp("export") / "nano"
+    assert main(["export-onnx", "--checkpoint", str(NANO), "--out", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def perturbed(tmp_path_factory) -> Path:
+    """A copy of the bundled nano with one weight changed, saved as a project checkpoint (same architecture)."""
+    model = load_model(NANO)
+    with torch.no_grad():
+        next(p for p in model.parameters() if p.is_floating_point()).view(-1)[0] += 0.5
+    path = tmp_path_factory.mktemp("perturbed") / "best_model.pth"
+    save_checkpoint(path, model)
+    return path
+
+
+def test_the_export_records_the_weights_sha256_in_the_manifest_and_every_graph(nano_export):
+    expected = reference_sha256(load_model(NANO))
+    manifest = json.loads((nano_export / "engine.json").read_text())
+    assert manifest["weights_sha256"] == expected and weights_sha256(load_model(NANO)) == expected
+    assert manifest["source"] == str(NANO.resolve()) and set(manifest["files"]) == {"fp32"}
+    import onnx
+
+    for name in ("encoder.onnx", "head.onnx"):
+        props = {p.key: p.value for p in onnx.load(str(nano_export / name), load_external_data=False).metadata_props}
+        assert props["weights_sha256"] == expected
+
+
+def test_other_weights_of_the_same_architecture_are_refused_naming_both_digests(nano_export, perturbed, tmp_path, capsys):
+    exported, other = reference_sha256(load_model(NANO)), reference_sha256(load_model(perturbed))
+    assert exported != other
+    with pytest.raises(UserError) as refused:
+        StreamingEngine(load_model(perturbed), EngineConfig(runtime="onnx", onnx_dir=nano_export))
+    assert str(refused.value) == (f"{nano_export}: the ONNX graphs were exported from other weights (sha256 "
+                                  f"{exported[:12]}… ≠ this model's {other[:12]}…); export again with "
+                                  "`touchanything export-onnx`")
+    episode = write_episode(tmp_path / "ep", frames=12)
+    assert main(["replay", str(episode), "--headless", "--onnx", str(nano_export), "--checkpoint", str(perturbed),
+                 "--out", str(tmp_path / "out.mp4")]) == 2
+    assert one_error_line(capsys) == f"touchanything replay: error: {refused.value}"
+    assert not (tmp_path / "out.mp4").exists()
+
+
+def test_the_same_weights_saved_again_are_accepted(nano_export, tmp_path):
+    """The digest is of the weights, not of the checkpoint file: a re-saved copy runs the export."""
+    save_checkpoint(tmp_path / "best_model.pth", load_model(NANO), epoch=7)
+    assert (tmp_path / "best_model.pth").read_bytes() != NANO.read_bytes()
+    StreamingEngine(load_model(tmp_path / "best_model.pth"), EngineConfig(runtime="onnx", onnx_dir=nano_export))
+
+
+def test_old_exports_and_foreign_graph_files_are_refused(nano_export, perturbed, tmp_path):
+    old = tmp_path / "old"
+    shutil.copytree(nano_export, old)
+    manifest = json.loads((old / "engine.json").read_text())
+    del manifest["weights_sha256"]
+    (old / "engine.json").write_text(json.dumps(manifest))
+    with pytest.raises(UserError, match=r"does not record the SHA-256 of its weights .*export again"):
+        StreamingEngine(load_model(NANO), EngineConfig(runtime="onnx", onnx_dir=old))
+    mixed = tmp_path / "mixed"
+    assert main(["export-onnx", "--checkpoint", str(perturbed), "--out", str(mixed)]) == 0
+    shutil.copy(nano_export / "head.onnx", mixed / "head.onnx")
+    with pytest.raises(UserError, match=r"head\.onnx: this graph was not exported with the weights"):
+        OnnxRuntime(mixed)
+
+
+def test_exporting_again_replaces_the_whole_folder(nano_export, perturbed, tmp_path, capsys):
+    out = tmp_path / "graphs"
+    assert main(["export-onnx", "--checkpoint", str(perturbed), "--out", str(out), "--int8"]) == 0
+    assert (out / "encoder.int8.onnx").is_file() and (out / "head.int8.onnx").is_file()
+    assert main(["export-onnx", "--checkpoint", str(NANO), "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["encoder.onnx", "engine.json", "head.onnx"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["graphs"]  # no temporary or old folder left beside it
+    assert json.loads((out / "engine.json").read_text())["weights_sha256"] == reference_sha256(load_model(NANO))
+    StreamingEngine(load_model(NANO), EngineConfig(runtime="onnx", onnx_dir=out))
+    capsys.readouterr()
+    other = tmp_path / "notes"
+    other.mkdir()
+    (other / "keep.txt").write_text("mine")
+    assert main(["export-onnx", "--checkpoint", str(NANO), "--out", str(other)]) == 2
+    assert one_error_line(capsys) == f"touchanything export-onnx: error: {other}: folder is not empty; pass --overwrite to replace it"
+    assert (other / "keep.txt").read_text() == "mine"
+    assert main(["export-onnx", "--checkpoint", str(perturbed), "--out", str(perturbed.parent)]) == 2
+    assert "holds the input" in one_error_line(capsys) and perturbed.is_file()
+
+
+def test_the_user_cache_is_keyed_and_checked_by_the_weights(nano_export, perturbed, tmp_path, monkeypatch):
+    """A cache folder of the model's digest that holds other graphs (here: nano's) is exported again."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    model = load_model(perturbed)
+    digest = reference_sha256(model)
+    folder = onnx_cache_dir(digest)
+    assert folder == tmp_path / "touchanything" / "onnx" / digest[:16]
+    shutil.copytree(nano_export, folder)
+    StreamingEngine(model, EngineConfig(runtime="onnx", precision="int8"))
+    manifest = json.loads((folder / "engine.json").read_text())
+    assert manifest["weights_sha256"] == digest and set(manifest["files"]) == {"fp32", "int8"}
+
+
+def test_exporting_into_the_cache_leaves_a_running_engine_alone(tmp_path, monkeypatch):
+    """The dashboard's first switch to an ONNX tier exports while the old engine runs on its thread. In this
+    process torch's exporter traced that engine's module calls too and broke its step; the export runs in a
+    child process now, and the running engine keeps predicting."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    model = load_model(NANO)
+    rng = np.random.default_rng(0)
+    images = {v: rng.integers(0, 256, (64, 64, 3), dtype=np.uint8) for v in VIEW_NAMES}
+    joints = (rng.normal(0, 2, (42, 3)) + [0, 0, 40]).astype(np.float32)
+    done = threading.Event()
+    with LiveEngine(StreamingEngine(model, EngineConfig())) as live:
+        def feed() -> None:
+            for i in itertools.count():
+                if done.wait(1 / 30):
+                    return
+                live.submit(Snapshot(i, int(time.monotonic() * 1e6), images, joints, np.array([True, True])))
+
+        feeder = threading.Thread(target=feed)
+        feeder.start()
+        try:
+            started = live.stats.processed
+            StreamingEngine(model, EngineConfig(runtime="onnx", precision="int8"))
+            during = live.stats.processed - started
+        finally:
+            done.set()
+            feeder.join()
+    assert live.error is None and during >= 30
+
+
+def test_a_failed_cache_export_is_one_line(tmp_path, monkeypatch):
+    (tmp_path / "cache").write_text("a file where the cache folder would go")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    model = load_model(NANO)
+    with pytest.raises(UserError) as refused:
+        StreamingEngine(model, EngineConfig(runtime="onnx"))
+    folder = tmp_path / "cache" / "touchanything" / "onnx" / reference_sha256(model)[:16]
+    assert str(refused.value) == f"{folder}: exporting the ONNX graphs into the cache failed: not written (Not a directory)"
+
+
+def test_replay_runs_an_export_folder_and_names_it(nano_export, tmp_path, capsys):
+    episode = write_episode(tmp_path / "ep", frames=12)
+    out = tmp_path / "replay.mp4"
+    assert main(["replay", str(episode), "--headless", "--onnx", str(nano_export), "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    model = next(line for line in lines if line.startswith("model "))
+    assert f"(onnx fp32 from {nano_export} on cpu)" in model and model.startswith("model     nano")
+    assert out.is_file()
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--runtime", "torch"], "an ONNX export runs on the onnx runtime, not torch"),
+    (["--precision", "int8"], "no int8 graphs; export with `touchanything export-onnx --int8`"),
+    (["--setting", "nano/onnx-int8/all"], "drop --onnx"),
+])
+def test_replay_onnx_errors_are_one_line(nano_export, tmp_path, capsys, extra, words):
+    episode = write_episode(tmp_path / "ep", frames=4)
+    assert main(["replay", str(episode), "--headless", "--onnx", str(nano_export), "--out", str(tmp_path / "o.mp4"),
+                 *extra]) == 2
+    assert words in one_error_line(capsys)
+
+
+def test_an_onnx_folder_without_manifest_is_one_line(tmp_path, capsys):
+    assert main(["demo", "--headless", "--onnx", str(tmp_path), "--out", str(tmp_path / "demo.mp4")]) == 2
+    assert one_error_line(capsys) == (f"touchanything demo: error: {tmp_path}: no engine.json; create the folder with "
+                                      "`touchanything export-onnx`")
+
+
+def test_live_and_scenes_take_an_export_folder(nano_export, tmp_path):
+    session = open_live_session(SCENES / "sim.toml", device="cpu", onnx=nano_export)  # not started: no devices
+    assert session.choice.onnx_dir == nano_export and session.choice.checkpoint == NANO.resolve()
+    assert session.live.engine.runtime.name == "onnx" and f"from {nano_export}" in session.state().model
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f'[model]\nonnx_dir = "{nano_export}"\nprecision = "fp32"\n')
+    choice = read_scene(scene).model
+    assert (choice.runtime, choice.onnx_dir, choice.checkpoint) == ("onnx", nano_export, NANO.resolve())
+    scene.write_text(f'[model]\nonnx_dir = "{nano_export}"\nruntime = "torch"\n')
+    with pytest.raises(UserError, match="runs on the onnx runtime, not torch"):
+        read_scene(scene)
+
