@@ -15,7 +15,7 @@ from touchanything.devices.view_sets import view_label
 from touchanything.viz.pressure_panel import BACKGROUND, MAP_TITLES, dimmed, pressure_panel, put_text
 
 WIDTH, CAMERA_HEIGHT, PANEL_HEIGHT, STRIP_HEIGHT, FOOTER_HEIGHT = 1440, 270, 360, 150, 26
-CAPTION_COLOURS = ((235, 235, 235), (40, 180, 255))  # BGR: the model line, then a warning in amber
+CAPTION_COLOURS = ((235, 235, 235), (255, 180, 40))  # RGB: the model line, then a warning in amber
 COMMENT = "touchanything comparison video"
 """The comment tag of every comparison video: what a later run may replace without --overwrite."""
 

@@ -285,7 +285,9 @@ class EngineSession:
             self.message = "still loading the previous choice"
             return
         self._loading = True
-        self.message = f"loading {model_label(choice)}…"
+        first_use = " (an ONNX tier's first use exports its graphs in the background: about 15 s)" \
+            if choice.runtime == "onnx" and choice.onnx_dir is None else ""
+        self.message = f"loading {model_label(choice)}…{first_use}"
         threading.Thread(target=self._load, args=(choice,), name="touchanything-load", daemon=True).start()
 
     def _load(self, choice: ModelChoice) -> None:

@@ -182,14 +182,15 @@ def _log_frame(rerun: RerunRecording, episode: Episode, snapshot: Snapshot, trut
 
 def export_replay(sources: list[ReplaySource], engine: StreamingEngine, out: Path | None,
                   progress: Callable[[int], None] = lambda frame: None, hand3d: bool = False,
-                  rerun: RerunRecording | None = None, captions: list[tuple[str, ...]] | None = None,
-                  setting: str = "") -> list[ReplaySummary]:
+                  rerun: RerunRecording | None = None, caption: tuple[str, ...] = (),
+                  footers: list[str] | None = None) -> list[ReplaySummary]:
     """Write the comparison video of the sources' whole episodes, one after the other, to `out` (H.264 MP4; None:
-    no video) with the 3D hands panel when `hand3d`, each episode's `captions` (what the model is, a warning,
-    which episode) under the predicted maps, `setting` (the engine setting's name) in the footer, and the Rerun
-    recording when given (one source); return each episode's summary (the engine starts afresh per episode)."""
+    no video) with the 3D hands panel when `hand3d`, `caption` (what the model is, a warning) under the predicted
+    maps, each episode's footer (`footers`: the engine setting's name, which episode) first in its footer, and
+    the Rerun recording when given (one source); return each episode's summary (the engine starts afresh per
+    episode)."""
     summaries = [ReplaySummary() for _ in sources]
-    captions = captions or [()] * len(sources)
+    footers = footers or [""] * len(sources)
     if out is None:
         for source, summary in zip(sources, summaries):
             for _ in replay_frames(source, engine, summary, progress, rerun=rerun):
@@ -197,7 +198,7 @@ def export_replay(sources: list[ReplaySource], engine: StreamingEngine, out: Pat
         return summaries
     frames = itertools.chain.from_iterable(
         replay_frames(source, engine, summary, progress,
-                      ReplayFrameRenderer(source.episode.num_frames, hand3d, caption, setting), rerun)
-        for source, summary, caption in zip(sources, summaries, captions))
+                      ReplayFrameRenderer(source.episode.num_frames, hand3d, caption, footer), rerun)
+        for source, summary, footer in zip(sources, summaries, footers))
     write_comparison_video(out, frames)
     return summaries

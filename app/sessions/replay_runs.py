@@ -49,7 +49,9 @@ def replay_to_video(paths: Sequence[Path], choice: ModelChoice, views: tuple[str
         camera = any(pose_source_for(e) == "camera" for e in episodes)
         model = tuple(line for line in (model_name(choice), illustrative_note(choice, camera)) if line)
         tour = [f"episode {k + 1} of {len(paths)}: {episode_name(e)}" for k, e in enumerate(episodes)] if len(paths) > 1 else []
-        captions = [model + ((tour[k],) if tour else ()) for k in range(len(paths))]
+        setting = setting_name(choice, views)
+        footers = ([f"{setting} · episode {k + 1}/{len(paths)} {e.scene}/{e.task}" for k, e in enumerate(episodes)]
+                   if tour else [setting])
         for k, episode in enumerate(episodes):
             print("\n".join(([f"--- {tour[k]}"] if tour else []) + episode_lines(episode)))
         known = [len(e.problems) for e in episodes]
@@ -57,8 +59,7 @@ def replay_to_video(paths: Sequence[Path], choice: ModelChoice, views: tuple[str
                                              session_properties(choice, engine, episodes[0]))
         try:
             with tqdm(total=sum(e.num_frames for e in episodes), unit="frame", desc="replay") as bar:
-                summaries = export_replay(sources, engine, out, lambda frame: bar.update(1), hand3d, recording, captions,
-                                          setting_name(choice, views))
+                summaries = export_replay(sources, engine, out, lambda frame: bar.update(1), hand3d, recording, model, footers)
         except BaseException:
             if recording is not None:
                 recording.close()  # what was logged stays readable
@@ -68,7 +69,7 @@ def replay_to_video(paths: Sequence[Path], choice: ModelChoice, views: tuple[str
                 print(f"problems  {len(found)} more found while replaying" + (f" {episode_name(episode)}" if tour else ""))
                 print("\n".join(f"  - {problem}" for problem in found))
     print(f"model     {model_label(choice, engine)}, {engine.runtime.capture}")
-    print(f"setting   {setting_name(choice, views)}")
+    print(f"setting   {setting}")
     if len(model) > 1:
         print(f"note      {model[1]}")
     for k, summary in enumerate(summaries):
