@@ -69,4 +69,4 @@ def test_the_caption_is_drawn_under_the_predicted_maps():
     rows = changed[:, 0]
     assert CAMERA_HEIGHT + PANEL_HEIGHT - 50 <= rows.min() and rows.max() < CAMERA_HEIGHT + PANEL_HEIGHT
     amber = captioned[CAMERA_HEIGHT + PANEL_HEIGHT - 20:CAMERA_HEIGHT + PANEL_HEIGHT]
-    assert ((amber[..., 2] > 200) & (amber[..., 0] < 100)).any()  # the warning line is amber (BGR)
+    assert ((amber[..., 0] > 200) & (amber[..., 2] < 100)).any()  # the warning line is amber (the frame is RGB)
