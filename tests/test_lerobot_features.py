@@ -20,6 +20,7 @@ from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpiso
 from touchanything.devices.episodes.lerobot_checks import metadata_problems
 from touchanything.devices.episodes.lerobot_stats import aggregate, feature_stats
 from touchanything.devices.errors import DataError
+from touchanything.devices.tactile_layout import TactileLayout
 
 
 @pytest.fixture
@@ -172,3 +173,16 @@ def test_malformed_metadata_is_named_or_read_correctly(raw_root, tmp_path, capsy
     _rewrite(info, lambda d: d["features"]["observation.state"].update(names=["x"] * 128))
     with pytest.raises(DataError, match="observation.state names"):
         open_episode(out / "episode_000000")
+
+
+def test_the_exported_cells_are_the_official_sensor_maps_cells(raw_root, tmp_path, official_dir):
+    """The 434 values are named by the cells the official mapping files (pressure_position_mapping_{left,right}.json,
+    the right one mirrored) give a sensor — read here from the released files, not the project's copy."""
+    official = TactileLayout.from_dir(official_dir).valid
+    out = tmp_path / "lerobot"
+    assert main(["export-lerobot", str(raw_root), str(out)]) == 0
+    names = json.loads((out / "meta" / "info.json").read_text())["features"]["observation.tactile"]["names"]
+    left = json.loads((official_dir / "pressure_position_mapping_left.json").read_text())
+    assert sorted(n for n in names if n.startswith("left.")) == sorted(
+        f"left.r{int(k.split(',')[0]):02d}c{int(k.split(',')[1]):02d}" for k in left)  # the file's own keys
+    assert len(names) == int(official.sum()) == 434
