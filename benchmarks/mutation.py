@@ -1,0 +1,297 @@
+"""Mutation testing of the core modules with cosmic-ray: how many small code changes (mutants) the narrow tests of
+each module notice. Not part of `make test`: run it by hand (docs/testing.md).
+
+    python benchmarks/mutation.py --build                  # once: makes .mutation-venv (cosmic-ray==8.7.0 only)
+    nice -n 10 python benchmarks/mutation.py [--modules metrics frame_facts ...] [--out docs/bench/mutation]
+
+What is committed at HEAD is cloned into a scratch folder and mutated there (the working tree is never touched);
+inside the clone `touchanything/` gets links to app/, devices/, inference/ and viz/, so that with the clone on
+PYTHONPATH `import touchanything.inference...` imports the clone's (mutated) files, not the editable install's.
+Per module: one unmutated run of its tests (the baseline, which sets the timeout), `cosmic-ray init`, the
+operators outside `OPERATORS` and the mutants inside annotations skipped, `cosmic-ray exec` (local, one mutant at
+a time), `cosmic-ray dump`. Writes OUT.json (per module: counts, score, every survivor with its diff) and OUT.md;
+modules not run this time keep their earlier entry. A survivor listed in `EQUIVALENT` is reported with the reason
+it cannot be killed and does not count against the score over non-equivalent mutants.
+"""
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import os
+import platform
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+COSMIC_RAY = "cosmic-ray==8.7.0"
+PYTHON = ROOT / ".venv" / "bin" / "python"
+PACKAGES = ("app", "devices", "inference", "viz")
+PYTEST = ("-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "-p", "no:randomly", "-p", "no:xdist",
+          "--hypothesis-seed=0")
+
+
+@dataclass(frozen=True)
+class Module:
+    path: str
+    tests: tuple[str, ...]
+    pytest_args: tuple[str, ...] = ()
+
+
+MODULES = {
+    "metrics": Module("inference/evaluation/metrics.py", ("tests/test_metrics.py", "tests/test_metric_edges.py"),
+                      ("-k", "not million")),  # the million-frame float64 test takes 10 s and sees no operator mutant
+    "frame_facts": Module("viz/frame_facts.py", ("tests/test_frame_facts.py", "tests/test_frame_facts_edges.py")),
+    "frame_ring": Module("inference/engine/frame_ring.py", ("tests/test_streaming.py", "tests/test_frame_ring.py"),
+                         ("-k", "not official_offline")),
+    "streaming_engine": Module("inference/engine/streaming_engine.py", ("tests/test_streaming.py",),
+                               ("-k", "not official_offline")),
+    "tactile_layout": Module("devices/tactile_layout.py", ("tests/test_tactile_layout.py",)),
+    "output_safety": Module("devices/output_safety.py", ("tests/test_output_safety.py",)),
+}
+"""The modules under test, in priority order, each with the narrowest tests that cover it (each mutant runs them)."""
+
+_BINARY = ("Add_Sub", "Sub_Add", "Mul_Div", "Div_Mul", "FloorDiv_Div", "Mod_FloorDiv", "Pow_Mul", "BitAnd_BitOr",
+           "BitOr_BitAnd", "BitXor_BitOr", "LShift_RShift", "RShift_LShift")
+_COMPARISON = ("Lt_LtE", "Lt_GtE", "LtE_Lt", "LtE_Gt", "Gt_GtE", "Gt_LtE", "GtE_Gt", "GtE_Lt", "Eq_NotEq",
+               "NotEq_Eq", "Is_IsNot", "IsNot_Is", "In_NotIn", "NotIn_In")
+_UNARY = ("USub_UAdd", "Delete_Not", "Delete_Invert")
+OPERATORS = (
+    [f"core/ReplaceBinaryOperator_{pair}" for pair in _BINARY]
+    + [f"core/ReplaceComparisonOperator_{pair}" for pair in _COMPARISON]
+    + [f"core/ReplaceUnaryOperator_{pair}" for pair in _UNARY]
+    + [f"core/{name}" for name in ("NumberReplacer", "AddNot", "ReplaceTrueWithFalse", "ReplaceFalseWithTrue",
+                                   "ReplaceAndWithOr", "ReplaceOrWithAnd", "ReplaceBreakWithContinue",
+                                   "ReplaceContinueWithBreak", "ExceptionReplacer", "RemoveDecorator",
+                                   "ZeroIterationForLoop")])
+"""The operators run. cosmic-ray replaces every binary operator by each of the 10 others and every comparison by
+each of the 7 others (615 mutants in metrics.py alone, most of them `+` → `<<` and the like); these keep one
+natural replacement per binary operator (as mutmut does), the off-by-one and the negated boundary per ordering
+comparison, the negation of (in)equality, identity and membership, and every other core operator."""
+
+EQUIVALENT: dict[tuple[str, str, str], str] = {
+}
+"""(module path, operator, the mutated line's text stripped) → why that mutant cannot change behaviour."""
+
+_SKIP_SCRIPT = """
+import json, sys
+from cosmic_ray.work_db import use_db
+from cosmic_ray.work_item import WorkResult, WorkerOutcome
+with use_db(sys.argv[1]) as db:
+    for job_id, reason in json.loads(sys.argv[2]).items():
+        db.set_result(job_id, WorkResult(output=reason, worker_outcome=WorkerOutcome.SKIPPED))
+"""
+
+
+def build_venv(venv: Path) -> None:
+    """A venv at `venv` holding cosmic-ray only (it imports none of the project; the tests run in .venv)."""
+    subprocess.run([str(PYTHON), "-m", "venv", str(venv)], check=True)
+    subprocess.run([str(venv / "bin" / "pip"), "install", "-q", COSMIC_RAY], check=True)
+
+
+def make_clone(scratch: Path) -> Path:
+    """HEAD cloned into `scratch`/clone, its `touchanything/` linking the four packages, byte-compiled."""
+    clone = scratch / "clone"
+    subprocess.run(["git", "clone", "-q", "--no-hardlinks", str(ROOT), str(clone)], check=True)
+    for package in PACKAGES:
+        (clone / "touchanything" / package).symlink_to(Path("..") / package)
+    subprocess.run([str(PYTHON), "-m", "compileall", "-q", *PACKAGES, "touchanything", "tests"], cwd=clone,
+                   check=True, stdout=subprocess.DEVNULL)
+    return clone
+
+
+def test_env(clone: Path) -> dict[str, str]:
+    env = {**os.environ, "PYTHONPATH": str(clone), "PYTHONDONTWRITEBYTECODE": "1"}
+    env.pop("PYTEST_ADDOPTS", None)
+    return env
+
+
+def test_command(module: Module) -> list[str]:
+    return [str(PYTHON), *PYTEST, *module.pytest_args, *module.tests]
+
+
+def annotation_lines(source: str) -> set[tuple[int, int]]:
+    """(line, column) of every character inside an annotation (not evaluated: every module has
+    `from __future__ import annotations`)."""
+    spans = set()
+    for node in ast.walk(ast.parse(source)):
+        notes = []
+        if isinstance(node, ast.arg | ast.AnnAssign) and node.annotation is not None:
+            notes.append(node.annotation)
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.returns is not None:
+            notes.append(node.returns)
+        for note in notes:
+            for line in range(note.lineno, note.end_lineno + 1):
+                first = note.col_offset if line == note.lineno else 0
+                last = note.end_col_offset if line == note.end_lineno else 10_000
+                spans.update((line, col) for col in range(first, last))
+    return spans
+
+
+def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path) -> dict:
+    """The mutation run of one module: counts, score, survivors."""
+    cr = venv / "bin"
+    env = test_env(clone)
+    missing = [t for t in module.tests if not (clone / t).exists()]
+    tests = tuple(t for t in module.tests if t not in missing)
+    module = Module(module.path, tests, module.pytest_args)
+    began = time.perf_counter()
+    baseline = subprocess.run(test_command(module), cwd=clone, env=env, capture_output=True, text=True)
+    baseline_s = time.perf_counter() - began
+    if baseline.returncode != 0:
+        return {"path": module.path, "tests": list(tests), "error": "the tests fail unmutated",
+                "output_tail": baseline.stdout[-3000:]}
+    timeout = round(max(20.0, 3 * baseline_s + 10), 1)
+    config = scratch / f"{name}.toml"
+    session = scratch / f"{name}.sqlite"
+    config.write_text("\n".join([
+        "[cosmic-ray]", f'module-path = "{module.path}"', f"timeout = {timeout}", "excluded-modules = []",
+        f"test-command = {json.dumps(' '.join(test_command(module)))}", "",
+        "[cosmic-ray.distributor]", 'name = "local"', "",
+        "[cosmic-ray.filters.operators-filter]",
+        f"exclude-operators = {json.dumps(['core/(?!(' + '|'.join(re.escape(o[5:]) for o in OPERATORS) + ')$)'])}",
+        ""]))
+    subprocess.run([str(cr / "cosmic-ray"), "init", str(config), str(session)], cwd=clone, check=True)
+    subprocess.run([str(cr / "cr-filter-operators"), str(session), str(config)], cwd=clone, check=True)
+    source = (clone / module.path).read_text()
+    notes = annotation_lines(source)
+    skip = {}
+    for item, result in dump(cr, session, clone):
+        mutation = item["mutations"][0]
+        if result is None and tuple(mutation["start_pos"]) in notes:
+            skip[item["job_id"]] = "in an annotation"
+    subprocess.run([str(cr / "python"), "-c", _SKIP_SCRIPT, str(session), json.dumps(skip)], check=True)
+    began = time.perf_counter()
+    subprocess.run([str(cr / "cosmic-ray"), "exec", str(config), str(session)], cwd=clone, env=env, check=True)
+    seconds = time.perf_counter() - began
+    lines = source.splitlines()
+    counts = {"mutants": 0, "killed": 0, "timeouts": 0, "survived": 0, "incompetent": 0, "equivalent": 0}
+    survivors = []
+    for item, result in dump(cr, session, clone):
+        if result is None or result["worker_outcome"] in ("skipped", "no-test"):
+            continue
+        counts["mutants"] += 1
+        mutation = item["mutations"][0]
+        if result["worker_outcome"] != "normal" or result["test_outcome"] == "incompetent":
+            counts["incompetent"] += 1
+            continue
+        if result["test_outcome"] == "killed":
+            counts["timeouts" if result["output"] == "timeout" else "killed"] += 1
+            continue
+        counts["survived"] += 1
+        line = mutation["start_pos"][0]
+        text = lines[line - 1].strip()
+        reason = EQUIVALENT.get((module.path, mutation["operator_name"], text))
+        counts["equivalent"] += reason is not None
+        survivors.append({"line": line, "column": mutation["start_pos"][1], "operator": mutation["operator_name"],
+                          "occurrence": mutation["occurrence"], "function": mutation.get("definition_name"),
+                          "source": text, "diff": result["diff"], "equivalent": reason})
+    survivors.sort(key=lambda s: (s["line"], s["column"], s["operator"]))
+    caught = counts["killed"] + counts["timeouts"]
+    real = counts["mutants"] - counts["incompetent"] - counts["equivalent"]
+    return {"path": module.path, "tests": list(tests), "pytest_args": list(module.pytest_args),
+            "missing_tests": missing, "baseline_s": round(baseline_s, 1), "timeout_s": timeout,
+            "seconds": round(seconds, 1), **counts, "skipped_in_annotations": len(skip),
+            "score": round(caught / max(counts["mutants"] - counts["incompetent"], 1), 4),
+            "score_non_equivalent": round(caught / max(real, 1), 4), "survivors": survivors}
+
+
+def dump(cr: Path, session: Path, clone: Path) -> list[tuple[dict, dict | None]]:
+    out = subprocess.run([str(cr / "cosmic-ray"), "dump", str(session)], cwd=clone, check=True, capture_output=True,
+                         text=True).stdout
+    return [tuple(json.loads(line)) for line in out.splitlines() if line.strip()]
+
+
+def report(results: dict) -> str:
+    """The markdown summary."""
+    lines = ["# Mutation testing of the core modules", "",
+             f"`nice -n 10 python benchmarks/mutation.py` ({results['tool']}, local distributor, one mutant at a time; "
+             "docs/testing.md), last run on "
+             f"{results['machine']}, {results['date']}: each module's mutants run against the narrow tests named "
+             "below, on a clone of HEAD. Operators: one natural replacement per binary operator, the off-by-one and "
+             "the negated boundary per ordering comparison, the negation of ==, is, in, and every other core "
+             "operator (`OPERATORS`); mutants inside annotations are skipped (not evaluated).", "",
+             "A timeout counts as killed. Score = killed / mutants; the target is ≥ 90 % of the non-equivalent "
+             "mutants killed in each module, each survivor either killed by a test or explained as equivalent.", "",
+             "| module | tests | mutants | killed | timeouts | survived | equivalent | score | score (non-equivalent) | "
+             "baseline run | time |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for name, row in results["modules"].items():
+        if "error" in row:
+            lines.append(f"| {name} (`{row['path']}`) | {', '.join(row['tests'])} | {row['error']} | | | | | | | | |")
+            continue
+        tests = ", ".join(f"`{t}`" for t in row["tests"]) + (f" `{' '.join(row['pytest_args'])}`" if row["pytest_args"] else "")
+        lines.append(f"| {name} (`{row['path']}`) | {tests} | {row['mutants']} | {row['killed']} | {row['timeouts']} | "
+                     f"{row['survived']} | {row['equivalent']} | {100 * row['score']:.1f} % | "
+                     f"{100 * row['score_non_equivalent']:.1f} % | {row['baseline_s']} s | {row['seconds'] / 60:.0f} min |")
+    for name, row in results["modules"].items():
+        if "error" in row:
+            continue
+        history = row.get("history")
+        lines += ["", f"## {name}: {row['survived']} survivor{'s' if row['survived'] != 1 else ''}", ""]
+        if history:
+            lines += [history, ""]
+        if not row["survivors"]:
+            lines.append("None: every mutant was killed.")
+        for s in row["survivors"]:
+            verdict = f"equivalent: {s['equivalent']}" if s["equivalent"] else "**not killed, not explained**"
+            diff = "\n".join(d for d in s["diff"].splitlines() if d.startswith(("+", "-")) and not d.startswith(("+++", "---")))
+            lines += [f"- `{row['path']}:{s['line']}` ({s['function']}) `{s['operator'].removeprefix('core/')}`: {verdict}",
+                      "  ```diff", *(f"  {d}" for d in diff.splitlines()), "  ```"]
+    return "\n".join(lines) + "\n"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--venv", type=Path, default=ROOT / ".mutation-venv", help="the side venv holding cosmic-ray")
+    parser.add_argument("--build", action="store_true", help=f"make the side venv first ({COSMIC_RAY})")
+    parser.add_argument("--modules", nargs="+", choices=list(MODULES), default=list(MODULES), help="a subset (default: all)")
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "bench" / "mutation", help="OUT.json and OUT.md")
+    parser.add_argument("--keep", action="store_true", help="keep the scratch folder (the clone and the sessions)")
+    args = parser.parse_args()
+    if args.build:
+        build_venv(args.venv)
+    if not (args.venv / "bin" / "cosmic-ray").exists():
+        sys.exit(f"mutation: {args.venv}: no cosmic-ray there; make the venv with --build")
+    previous = json.loads(args.out.with_suffix(".json").read_text()) if args.out.with_suffix(".json").exists() else {}
+    version = subprocess.run([str(args.venv / "bin" / "cosmic-ray"), "--version"], capture_output=True, text=True)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    results = {"tool": version.stdout.strip(), "machine": f"{platform.machine()}, {os.cpu_count()} cores",
+               "date": time.strftime("%Y-%m-%d"), "commit": commit,
+               "modules": {name: row for name, row in previous.get("modules", {}).items() if name in MODULES}}
+    scratch = Path(tempfile.mkdtemp(prefix="mutation-"))
+    began = time.perf_counter()
+    try:
+        clone = make_clone(scratch)
+        for name in args.modules:
+            print(f"mutation: {name} ({MODULES[name].path}) ...", flush=True)
+            row = run_module(name, MODULES[name], clone, args.venv, scratch)
+            row["commit"] = commit
+            if "history" in results["modules"].get(name, {}):
+                row["history"] = results["modules"][name]["history"]
+            results["modules"][name] = row
+            results["modules"] = {key: results["modules"][key] for key in MODULES if key in results["modules"]}
+            args.out.parent.mkdir(parents=True, exist_ok=True)
+            args.out.with_suffix(".json").write_text(json.dumps(results, indent=1, ensure_ascii=False) + "\n")
+            args.out.with_suffix(".md").write_text(report(results))
+            print(f"mutation: {name}: {row.get('score_non_equivalent', row.get('error'))}", flush=True)
+    finally:
+        if args.keep:
+            print(f"mutation: scratch kept at {scratch}")
+        else:
+            shutil.rmtree(scratch, ignore_errors=True)
+    results["seconds"] = round(time.perf_counter() - began, 1)
+    print(report(results))
+    unexplained = [name for name, row in results["modules"].items() if name in args.modules
+                   and ("error" in row or any(s["equivalent"] is None for s in row["survivors"]))]
+    return 1 if unexplained else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
