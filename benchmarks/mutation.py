@@ -21,6 +21,7 @@ import json
 import os
 import platform
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -75,9 +76,9 @@ each of the 7 others (615 mutants in metrics.py alone, most of them `+` → `<<`
 natural replacement per binary operator (as mutmut does), the off-by-one and the negated boundary per ordering
 comparison, the negation of (in)equality, identity and membership, and every other core operator."""
 
-EQUIVALENT: dict[tuple[str, str, str], str] = {
+EQUIVALENT: dict[tuple[str, str], str] = {
 }
-"""(module path, operator, the mutated line's text stripped) → why that mutant cannot change behaviour."""
+"""(module path, the mutant's changed line stripped) → why that mutant cannot change what the module does."""
 
 _SKIP_SCRIPT = """
 import json, sys
@@ -96,11 +97,14 @@ def build_venv(venv: Path) -> None:
 
 
 def make_clone(scratch: Path) -> Path:
-    """HEAD cloned into `scratch`/clone, its `touchanything/` linking the four packages, byte-compiled."""
+    """HEAD cloned into `scratch`/clone, its `touchanything/` linking the four packages, byte-compiled; ../shared
+    linked beside it."""
     clone = scratch / "clone"
     subprocess.run(["git", "clone", "-q", "--no-hardlinks", str(ROOT), str(clone)], check=True)
     for package in PACKAGES:
         (clone / "touchanything" / package).symlink_to(Path("..") / package)
+    if (ROOT.parent / "shared").is_dir():  # the official files the tests find beside the checkout (tests/conftest.py)
+        (scratch / "shared").symlink_to(ROOT.parent / "shared")
     subprocess.run([str(PYTHON), "-m", "compileall", "-q", *PACKAGES, "touchanything", "tests"], cwd=clone,
                    check=True, stdout=subprocess.DEVNULL)
     return clone
@@ -112,8 +116,9 @@ def test_env(clone: Path) -> dict[str, str]:
     return env
 
 
-def test_command(module: Module) -> list[str]:
-    return [str(PYTHON), *PYTEST, *module.pytest_args, *module.tests]
+def test_command(module: Module) -> str:
+    """The command line cosmic-ray runs per mutant (it splits it with shlex; the baseline runs the same)."""
+    return shlex.join([str(PYTHON), *PYTEST, *module.pytest_args, *module.tests])
 
 
 def annotation_lines(source: str) -> set[tuple[int, int]]:
@@ -142,7 +147,7 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
     tests = tuple(t for t in module.tests if t not in missing)
     module = Module(module.path, tests, module.pytest_args)
     began = time.perf_counter()
-    baseline = subprocess.run(test_command(module), cwd=clone, env=env, capture_output=True, text=True)
+    baseline = subprocess.run(shlex.split(test_command(module)), cwd=clone, env=env, capture_output=True, text=True)
     baseline_s = time.perf_counter() - began
     if baseline.returncode != 0:
         return {"path": module.path, "tests": list(tests), "error": "the tests fail unmutated",
@@ -152,7 +157,7 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
     session = scratch / f"{name}.sqlite"
     config.write_text("\n".join([
         "[cosmic-ray]", f'module-path = "{module.path}"', f"timeout = {timeout}", "excluded-modules = []",
-        f"test-command = {json.dumps(' '.join(test_command(module)))}", "",
+        f"test-command = {json.dumps(test_command(module))}", "",
         "[cosmic-ray.distributor]", 'name = "local"', "",
         "[cosmic-ray.filters.operators-filter]",
         f"exclude-operators = {json.dumps(['core/(?!(' + '|'.join(re.escape(o[5:]) for o in OPERATORS) + ')$)'])}",
@@ -178,7 +183,8 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
             continue
         counts["mutants"] += 1
         mutation = item["mutations"][0]
-        if result["worker_outcome"] != "normal" or result["test_outcome"] == "incompetent":
+        if (result["worker_outcome"] != "normal" or result["test_outcome"] == "incompetent"
+                or "no tests ran" in (result["output"] or "")):  # pytest ran nothing: the command, not the mutant
             counts["incompetent"] += 1
             continue
         if result["test_outcome"] == "killed":
@@ -187,16 +193,18 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
         counts["survived"] += 1
         line = mutation["start_pos"][0]
         text = lines[line - 1].strip()
-        reason = EQUIVALENT.get((module.path, mutation["operator_name"], text))
+        mutated = next((d[1:].strip() for d in result["diff"].splitlines() if d.startswith("+") and not d.startswith("+++")), "")
+        reason = EQUIVALENT.get((module.path, mutated))
         counts["equivalent"] += reason is not None
         survivors.append({"line": line, "column": mutation["start_pos"][1], "operator": mutation["operator_name"],
                           "occurrence": mutation["occurrence"], "function": mutation.get("definition_name"),
-                          "source": text, "diff": result["diff"], "equivalent": reason})
+                          "source": text, "mutated": mutated, "diff": result["diff"], "equivalent": reason})
     survivors.sort(key=lambda s: (s["line"], s["column"], s["operator"]))
     caught = counts["killed"] + counts["timeouts"]
     real = counts["mutants"] - counts["incompetent"] - counts["equivalent"]
     return {"path": module.path, "tests": list(tests), "pytest_args": list(module.pytest_args),
-            "missing_tests": missing, "baseline_s": round(baseline_s, 1), "timeout_s": timeout,
+            "missing_tests": missing, "baseline": baseline.stdout.strip().splitlines()[-1].strip("= "),
+            "baseline_s": round(baseline_s, 1), "timeout_s": timeout,
             "seconds": round(seconds, 1), **counts, "skipped_in_annotations": len(skip),
             "score": round(caught / max(counts["mutants"] - counts["incompetent"], 1), 4),
             "score_non_equivalent": round(caught / max(real, 1), 4), "survivors": survivors}
@@ -229,7 +237,8 @@ def report(results: dict) -> str:
         tests = ", ".join(f"`{t}`" for t in row["tests"]) + (f" `{' '.join(row['pytest_args'])}`" if row["pytest_args"] else "")
         lines.append(f"| {name} (`{row['path']}`) | {tests} | {row['mutants']} | {row['killed']} | {row['timeouts']} | "
                      f"{row['survived']} | {row['equivalent']} | {100 * row['score']:.1f} % | "
-                     f"{100 * row['score_non_equivalent']:.1f} % | {row['baseline_s']} s | {row['seconds'] / 60:.0f} min |")
+                     f"{100 * row['score_non_equivalent']:.1f} % | {row['baseline_s']} s ({row.get('baseline', '')}) | "
+                     f"{row['seconds'] / 60:.0f} min |")
     for name, row in results["modules"].items():
         if "error" in row:
             continue
