@@ -63,6 +63,7 @@ def test_eval_writes_the_table_per_view_and_scene(sim_hdf5_root, tiny_checkpoint
                 for key in ALL_METRICS:
                     value = row[mode][key]
                     assert value >= 0 if key in counts else (math.isnan(value) or 0.0 <= value <= 1.0)
+        assert_means_of_the_rows(result)
     table = (tmp_path / "out" / "results.md").read_text()
     assert table.startswith("# Evaluation on") and table.count("| temporal_f1 |") == 2 and "| offset_recall |" in table
     videos = sorted((tmp_path / "out").glob("*.mp4"))
@@ -70,6 +71,20 @@ def test_eval_writes_the_table_per_view_and_scene(sim_hdf5_root, tiny_checkpoint
     with VideoReader(videos[0]) as reader:
         assert (reader.width, reader.height, reader.num_frames) == (1440, 656, 60)
         assert reader.read(30).std() > 10
+
+
+def assert_means_of_the_rows(result: dict) -> None:
+    """results.json's "overall" and per-scene figures are the official mean over its own trajectory rows: per
+    metric, the plain average of the trajectories whose value is a number (NaN when none is), counts included."""
+    rows = result["trajectories"]
+    groups = {"overall": rows, **{scene: [r for r in rows if r["scene"] == scene] for scene in {r["scene"] for r in rows}}}
+    for mode in ("stitched", "causal"):
+        assert set(result[mode]) == set(groups)
+        for group, members in groups.items():
+            for key in ALL_METRICS:
+                numbers = [r[mode][key] for r in members if not math.isnan(r[mode][key])]
+                want = sum(numbers) / len(numbers) if numbers else math.nan
+                assert result[mode][group][key] == pytest.approx(want, abs=1e-12, nan_ok=True), (mode, group, key)
 
 
 def test_eval_video_marks_the_views_the_model_does_not_use(sim_hdf5_root, tiny_checkpoint, tmp_path, capsys):
@@ -180,6 +195,7 @@ def test_eval_sharded_over_two_processes_equals_one(sim_hdf5_root, tiny_checkpoi
     assert proc.stdout.count("# Evaluation on") == 1  # only the main process reports
     one, two = (json.loads((tmp_path / name / "results.json").read_text()) for name in ("one", "two"))
     assert [row["path"] for row in two["results"][0]["trajectories"]] == files
+    assert_means_of_the_rows(one["results"][0])  # three trajectories: the overall is their mean, not the last one's
     assert json.dumps(one["results"], sort_keys=True) == json.dumps(two["results"], sort_keys=True)
 
 
