@@ -20,7 +20,7 @@ from touchanything.devices.snapshot import Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
 from touchanything.viz.colormap import PRESSURE_LUT, apply
-from touchanything.viz.frame_facts import frame_facts, hand_contact
+from touchanything.viz.frame_facts import frame_facts
 from touchanything.viz.hand_surface import hand_topology
 from touchanything.viz.pressure_panel import BACKGROUND
 from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
@@ -68,8 +68,11 @@ def test_replay_writes_a_recording_the_sdk_reads_back(episode_dir, tmp_path, cap
     with open_episode(episode_dir) as episode:
         truth = ground_truth_for_metrics(episode.pressure.grids, False)
         stamps = episode.timestamps_us
-    bend = TactileLayout.default().bend
-    assert rows["/contact/measured"].at("Scalars:scalars", 12) == hand_contact(truth[12], bend).astype(float).tolist()
+    # conftest's gloves press raw sensors 0-59 by int(200 sin(frame / 6)): the left layout reads them (it uses sensors
+    # 0-165), the right one does not (64-229). Frame 12 (sin 0.91): the left hand in contact, the right not; frame
+    # 25 (sin < 0, no press): neither; frame 0 (the baseline) neither
+    contact = rows["/contact/measured"]
+    assert [contact.at("Scalars:scalars", f) for f in (12, 25, 0)] == [[1.0, 0.0], [0.0, 0.0], [0.0, 0.0]]
     png = np.frombuffer(bytes(rows["/pressure/measured"].at("EncodedImage:blob", 12)[0]), np.uint8)
     rgba = cv2.cvtColor(cv2.imdecode(png, cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
     assert rgba.shape == (21, 43, 4)
