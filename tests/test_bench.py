@@ -53,6 +53,35 @@ def test_rows_have_the_documented_fields(nano_rows):
     assert naive["naive_p50_ms"] > naive["streaming_p50_ms"] and naive["ratio"] > 1
 
 
+def test_the_accuracy_columns_are_the_official_metrics_of_an_independent_replay(nano_rows):
+    """The reference row's V-IoU and C-IoU, worked out by hand from a fresh engine's replay of the same 40 frames
+    (the fixture's model built again from its seed): Σ min / Σ max and cells above 0.1 in both / in either, over
+    the measured cells (the official vmax fallback: divided by max(episode maximum, 1))."""
+    from itertools import islice
+
+    from touchanything.devices.episodes.episode_loader import open_episode
+    from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
+    from touchanything.inference.engine.engine_config import EngineConfig
+    from touchanything.inference.engine.streaming_engine import StreamingEngine
+
+    rows, _ = nano_rows
+    torch.manual_seed(0)
+    engine = StreamingEngine(TouchAnything(preset("nano")).eval(), EngineConfig(device="cpu"))
+    with open_episode(sample_episodes()[0]) as episode:
+        predictions = [p for s in islice(ReplaySource(episode, ReplayConfig(speed=None)), 40) for p in engine.step(s)]
+        grids = np.asarray(episode.pressure.grids, np.float64)
+    assert [p.frame_index for p in predictions] == list(range(40))
+    measured = np.clip(grids / max(np.nanmax(grids), 1.0), 0.0, 1.0)[:40]
+    inside = ~np.isnan(measured)
+    predicted = np.stack([p.pressure for p in predictions])[inside]
+    p, m = predicted.astype(np.float64), measured[inside]
+    viou = np.minimum(p, m).sum() / np.maximum(p, m).sum()
+    ciou = ((predicted > 0.1) & (m > 0.1)).sum() / ((predicted > 0.1) | (m > 0.1)).sum()
+    assert rows[0]["volumetric_iou"] == pytest.approx(viou, abs=1e-5)
+    assert rows[0]["per_trajectory"]["volumetric_iou"] == [pytest.approx(viou, abs=1e-5)]
+    assert rows[0]["contact_iou"] == pytest.approx(ciou, abs=1e-5)
+
+
 def test_report_files_and_targets(nano_rows, tmp_path):
     rows, naive = nano_rows
     record = {"machine": "test", "quick": True, "accuracy_data": "sample", "rows": rows,

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from touchanything.app.cli import main
 from touchanything.app.sessions.replay_export import ReplaySummary
@@ -77,21 +78,30 @@ def test_running_metrics_roll_and_accumulate():
     assert metrics.frames == 0
 
 
-def test_running_metrics_equal_the_batch_metrics_of_their_frames():
-    """The per-frame sum vectors give exactly the official metrics of the window / of every frame."""
-    from touchanything.inference.evaluation.metrics import METRICS, compute_tactile_metrics
-
+def test_running_metrics_by_hand_at_a_threshold_of_0_2():
+    """Five frames, each uniform over the layout's cells (P predicted, G measured), contact threshold 0.2, a window
+    of 3:  f0 P 0.3 G 0.3 (both contact) | f1 P 0.1 G 0.5 (measured only) | f2 G all NaN (not judged) |
+    f3 P 0.25 G 0.15 (predicted only) | f4 P 0 G 0 (neither).
+    cumulative: V-IoU (0.3 + 0.1 + 0.15 + 0) / (0.3 + 0.5 + 0.25 + 0) = 11/21; C-IoU: cells in both only at f0, in
+    either at f0, f1, f3 → 1/3; TA: f0 and f4 agree of 4 judged → 1/2; MAE (0 + 0.4 + 0.1 + 0) / 4 = 0.125.
+    rolling (f2 … f4): V-IoU 0.15/0.25 = 0.6; C-IoU 0/n = 0; TA 1/2; MAE 0.05.
+    At the official 0.1 instead: f1's 0.1 is not contact and f3's 0.15 is → C-IoU 2/3, TA 3/4."""
     layout = TactileLayout.default()
-    rng = np.random.default_rng(3)
-    mask = np.where(layout.valid, 1.0, np.nan)
-    preds = rng.uniform(0, 0.4, (50, 2, 21, 21)) * mask
-    gts = rng.uniform(0, 0.4, (50, 2, 21, 21)) * mask
-    gts[10:20] = np.nan  # frames without ground truth are not judged
-    metrics = RunningMetrics(layout.bend, window=7, threshold=0.2)
-    for p, g in zip(preds, gts):
-        metrics.add(p, g)
-    for got, frames in ((metrics.rolling(), slice(43, 50)), (metrics.cumulative(), slice(0, 50))):
-        want = compute_tactile_metrics(preds[frames], gts[frames], layout.bend, threshold=0.2)
-        assert tuple(got) == METRICS
-        for key in METRICS:
-            assert np.isclose(got[key], want[key], rtol=1e-12, equal_nan=True), key
+    full = lambda value: np.where(layout.valid, value, np.nan)  # noqa: E731
+    frames = [(0.3, 0.3), (0.1, 0.5), (0.7, np.nan), (0.25, 0.15), (0.0, 0.0)]
+    metrics = RunningMetrics(layout.bend, window=3, threshold=0.2)
+    official = RunningMetrics(layout.bend)
+    for p, g in frames:
+        for running in (metrics, official):
+            running.add(full(p).astype(np.float32), np.full((2, 21, 21), np.nan) if np.isnan(g) else full(g))
+    expected = {"cumulative": {"volumetric_iou": 11 / 21, "contact_iou": 1 / 3, "temporal_accuracy": 0.5, "mae": 0.125,
+                               "mae_left": 0.125, "mae_right": 0.125},
+                "rolling": {"volumetric_iou": 0.6, "contact_iou": 0.0, "temporal_accuracy": 0.5, "mae": 0.05,
+                            "mae_left": 0.05, "mae_right": 0.05}}
+    for kind, values in expected.items():
+        got = getattr(metrics, kind)()
+        assert tuple(got) == ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae", "mae_left", "mae_right")
+        for key, want in values.items():
+            assert got[key] == pytest.approx(want, abs=1e-6), (kind, key)  # float32 maps: 1e-6
+    assert official.cumulative()["contact_iou"] == pytest.approx(2 / 3) and official.cumulative()["temporal_accuracy"] == 0.75
+    assert metrics.frames == 5
