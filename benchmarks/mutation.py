@@ -77,7 +77,32 @@ each of the 7 others (615 mutants in metrics.py alone, most of them `+` → `<<`
 natural replacement per binary operator (as mutmut does), the off-by-one and the negated boundary per ordering
 comparison, the negation of (in)equality, identity and membership, and every other core operator."""
 
+_M = "inference/evaluation/metrics.py"
 EQUIVALENT: dict[tuple[str, str], str] = {
+    (_M, "flat = (grids.shape[0], valid[ -1].size if grids.shape[0] else 0)"):
+        "every frame has the same shape: the last frame's size is the first's",
+    (_M, "flat = (grids.shape[0], valid[0].size if grids.shape[0] else 1)"):
+        "with no frame the array is empty and reshapes to (0, 0) and to (0, 1) alike; the sums are empty either way",
+    (_M, "above = (valid & (np.nan_to_num(grids, nan= 1.0) > threshold)).reshape(flat).sum(axis=1)"):
+        "a NaN cell is not `valid`, so the value it is replaced by is masked out by `valid &`",
+    (_M, "if gt.shape[ -1] == 0:"):
+        "the early return for an empty chunk only saves work: without it an empty chunk adds 0 to every sum and a "
+        "(2, 0) flag array, the same result (a grid's last axis is 21, never 0)",
+    (_M, "above = (valid & (np.nan_to_num(grids, nan= -1.0) > threshold)).reshape(flat).sum(axis=1)"):
+        "a NaN cell is not `valid`, so the value it is replaced by is masked out by `valid &`",
+    (_M, 'return dict.fromkeys(DETECTION_METRICS[: 4], float("nan")) | {"temporal_support": 0}'):
+        "the fourth key, temporal_support, is set to 0 by the `| {...}` that follows either way",
+    (_M, 'return dict.fromkeys(EVENT_METRICS[: 5], float("nan")) | {"num_gt_onsets": 0, "num_gt_offsets": 0}'):
+        "the fifth key, num_gt_onsets, is set to 0 by the `| {...}` that follows either way",
+    (_M, "p_flags, g_flags = np.concatenate(self.kept_flags, axis=1) if self.kept_flags else np.zeros((2, 1), bool)"):
+        "with no kept frame the event metrics see one frame instead of none: fewer than two either way, so NaN "
+        "ratios and zero counts; the other metrics do not read the flags",
+    (_M, "if gt.shape[ 1] == 0:"):
+        "axis 1 is the two hands, never 0, so the early return is skipped for an empty chunk: it only saves work "
+        "(an empty chunk adds 0 to every sum and a (2, 0) flag array)",
+    (_M, "if gt.shape[0] == -1:"):
+        "the early return for an empty chunk only saves work: without it an empty chunk adds 0 to every sum and a "
+        "(2, 0) flag array, the same result",
     ("viz/frame_facts.py", "return np.array([contact_frames(np.asarray(grids[h])[None, None], bend[h][None], threshold)[ -1] "
                            "for h in range(2)])"):
         "`contact_frames` is given one frame (`[None, None]`), so its flags have length 1 and [-1] is [0]",
@@ -198,21 +223,27 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
         counts["survived"] += 1
         line = mutation["start_pos"][0]
         text = lines[line - 1].strip()
-        mutated = next((d[1:].strip() for d in result["diff"].splitlines() if d.startswith("+") and not d.startswith("+++")), "")
-        reason = EQUIVALENT.get((module.path, mutated))
-        counts["equivalent"] += reason is not None
         survivors.append({"line": line, "column": mutation["start_pos"][1], "operator": mutation["operator_name"],
                           "occurrence": mutation["occurrence"], "function": mutation.get("definition_name"),
-                          "source": text, "mutated": mutated, "diff": result["diff"], "equivalent": reason})
+                          "source": text, "diff": result["diff"]})
     survivors.sort(key=lambda s: (s["line"], s["column"], s["operator"]))
-    caught = counts["killed"] + counts["timeouts"]
-    real = counts["mutants"] - counts["incompetent"] - counts["equivalent"]
-    return {"path": module.path, "tests": list(tests), "pytest_args": list(module.pytest_args),
+    return classify({"path": module.path, "tests": list(tests), "pytest_args": list(module.pytest_args),
             "missing_tests": missing, "baseline": baseline.stdout.strip().splitlines()[-1].strip("= "),
             "baseline_s": round(baseline_s, 1), "timeout_s": timeout,
-            "seconds": round(seconds, 1), **counts, "skipped_in_annotations": len(skip),
-            "score": round(caught / max(counts["mutants"] - counts["incompetent"], 1), 4),
-            "score_non_equivalent": round(caught / max(real, 1), 4), "survivors": survivors}
+            "seconds": round(seconds, 1), **counts, "skipped_in_annotations": len(skip), "survivors": survivors})
+
+
+def classify(row: dict) -> dict:
+    """`row` with each survivor's `EQUIVALENT` reason (None: not explained) and the scores (re-applied when only
+    the report is written, so that an explanation added later counts without a new run)."""
+    for s in row["survivors"]:
+        s["mutated"] = next((d[1:].strip() for d in s["diff"].splitlines() if d.startswith("+") and not d.startswith("+++")), "")
+        s["equivalent"] = EQUIVALENT.get((row["path"], s["mutated"]))
+    row["equivalent"] = sum(s["equivalent"] is not None for s in row["survivors"])
+    caught = row["killed"] + row["timeouts"]
+    row["score"] = round(caught / max(row["mutants"] - row["incompetent"], 1), 4)
+    row["score_non_equivalent"] = round(caught / max(row["mutants"] - row["incompetent"] - row["equivalent"], 1), 4)
+    return row
 
 
 def dump(cr: Path, session: Path, clone: Path) -> list[tuple[dict, dict | None]]:
@@ -246,7 +277,8 @@ def report(results: dict, before: dict | None = None) -> str:
             continue
         tests = ", ".join(f"`{t}`" for t in row["tests"]) + (f" `{' '.join(row['pytest_args'])}`" if row["pytest_args"] else "")
         old = before.get(name)
-        earlier = (f"{100 * old['score']:.1f} % ({old['survived']} survived)" if old and "score" in old else "—")
+        earlier = (f"{100 * old['score_non_equivalent']:.1f} % ({old['survived'] - old['equivalent']} not equivalent)"
+                   if old and "score" in old else "—")
         lines.append(f"{where}| {tests} | {row['mutants']} | {row['killed']} | {row['timeouts']} | {row['survived']} | "
                      f"{row['equivalent']} | {100 * row['score']:.1f} % | {100 * row['score_non_equivalent']:.1f} % | "
                      f"{earlier} | {row['baseline_s']} s ({row.get('baseline', '')}) | {row['seconds'] / 60:.0f} min |")
@@ -274,15 +306,25 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "bench" / "mutation", help="OUT.json and OUT.md")
     parser.add_argument("--rev", default="HEAD", help="the commit to mutate and test (default HEAD; an earlier one "
                         "gives the score before tests were added: its missing test files are left out)")
+    parser.add_argument("--report-only", action="store_true", help="run nothing: apply `EQUIVALENT` to OUT.json "
+                        "(and OUT_before.json) and write OUT.md again")
     parser.add_argument("--keep", action="store_true", help="keep the scratch folder (the clone and the sessions)")
     args = parser.parse_args()
+    before_file = args.out.with_name(args.out.name + "_before.json")
+    before = json.loads(before_file.read_text()) if before_file.exists() and not args.out.name.endswith("_before") else None
+    if args.report_only:
+        results = json.loads(args.out.with_suffix(".json").read_text())
+        for data, path in ((results, args.out.with_suffix(".json")), (before, before_file)):
+            if data is not None:
+                data["modules"] = {name: row if "error" in row else classify(row) for name, row in data["modules"].items()}
+                path.write_text(json.dumps(data, indent=1, ensure_ascii=False) + "\n")
+        args.out.with_suffix(".md").write_text(report(results, before))
+        return 0
     if args.build:
         build_venv(args.venv)
     if not (args.venv / "bin" / "cosmic-ray").exists():
         sys.exit(f"mutation: {args.venv}: no cosmic-ray there; make the venv with --build")
     previous = json.loads(args.out.with_suffix(".json").read_text()) if args.out.with_suffix(".json").exists() else {}
-    before_file = args.out.with_name(args.out.name + "_before.json")
-    before = json.loads(before_file.read_text()) if before_file.exists() and not args.out.name.endswith("_before") else None
     version = subprocess.run([str(args.venv / "bin" / "cosmic-ray"), "--version"], capture_output=True, text=True)
     commit = subprocess.run(["git", "rev-parse", "--short", args.rev], cwd=ROOT, capture_output=True, text=True,
                             check=True).stdout.strip()
