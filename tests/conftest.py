@@ -98,6 +98,34 @@ def tiny_checkpoint(tmp_path_factory) -> Path:
     return path
 
 
+@pytest.fixture(scope="session")
+def perturbed_nano(tmp_path_factory) -> Path:
+    """A copy of the bundled nano with one weight changed, saved as a project checkpoint (same architecture,
+    other weights: its SHA-256 differs from nano's)."""
+    import torch
+
+    from touchanything.app.sessions.bundled import MODELS_DIR
+    from touchanything.inference.model.checkpoint import load_model, save_checkpoint
+
+    model = load_model(MODELS_DIR / "nano" / "best_model.pth")
+    with torch.no_grad():
+        next(p for p in model.parameters() if p.is_floating_point()).view(-1)[0] += 0.5
+    path = tmp_path_factory.mktemp("perturbed") / "best_model.pth"
+    save_checkpoint(path, model)
+    return path
+
+
+@pytest.fixture(scope="session")
+def perturbed_nano_export(perturbed_nano, tmp_path_factory) -> Path:
+    """`perturbed_nano` exported (fp32 + int8) by the command line, once per test process: an export takes
+    8-18 s on 2 cores. Tests copy it where they change or replace a folder."""
+    from touchanything.app.cli import main
+
+    out = tmp_path_factory.mktemp("perturbed_export") / "graphs"
+    assert main(["export-onnx", "--checkpoint", str(perturbed_nano), "--out", str(out), "--int8"]) == 0
+    return out
+
+
 @pytest.fixture(autouse=True)
 def restore_torch_threads():
     """Streaming engines set torch's process-wide thread count; give every test the default back."""

@@ -3,30 +3,21 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 
 from touchanything.app.cli import main
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.engine_config import EngineConfig
-from touchanything.inference.engine.onnx_cache import onnx_cache_dir
-from touchanything.inference.engine.onnx_export import weights_sha256
 from touchanything.inference.engine.onnx_runtime import OnnxRuntime
 from touchanything.inference.engine.streaming_engine import StreamingEngine
-from touchanything.inference.model.checkpoint import build_model, save_checkpoint
+from touchanything.inference.model.checkpoint import build_model, load_model
 from touchanything.inference.model.model_config import PRESETS
 
 
 @pytest.fixture(scope="module")
-def exported(tmp_path_factory):
-    """A random nano checkpoint and its ONNX export (fp32 + int8) made by the command line."""
-    torch.manual_seed(1)
-    folder = tmp_path_factory.mktemp("onnx")
-    model = build_model(PRESETS["nano"]).eval()
-    save_checkpoint(folder / "best_model.pth", model)
-    assert main(["export-onnx", "--checkpoint", str(folder / "best_model.pth"), "--out", str(folder / "graphs"),
-                 "--int8"]) == 0
-    return model, folder / "graphs"
+def exported(perturbed_nano, perturbed_nano_export):
+    """A nano checkpoint and its ONNX export (fp32 + int8) made by the command line."""
+    return load_model(perturbed_nano).eval(), perturbed_nano_export
 
 
 def stream(size: int, frames: int, seed: int = 0):
@@ -73,16 +64,6 @@ def test_reduced_precision_stays_close_and_finite_at_the_extremes(exported, runt
         (prediction,) = engine.step(frame)
         inside = prediction.pressure[~np.isnan(prediction.pressure)]
         assert inside.size and np.all((inside >= 0) & (inside <= 1))
-
-
-def test_onnx_graphs_are_exported_once_into_the_cache(exported, tmp_path, monkeypatch):
-    model, _ = exported
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    StreamingEngine(model, EngineConfig(runtime="onnx", precision="int8"))
-    folder = onnx_cache_dir(weights_sha256(model))
-    stamp = (folder / "engine.json").stat().st_mtime_ns
-    StreamingEngine(model, EngineConfig(runtime="onnx"))
-    assert (folder / "engine.json").stat().st_mtime_ns == stamp
 
 
 def test_runtime_selection_errors_are_clear(exported, tmp_path, capsys):

@@ -61,14 +61,9 @@ def nano_export(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def perturbed(tmp_path_factory) -> Path:
-    """A copy of the bundled nano with one weight changed, saved as a project checkpoint (same architecture)."""
-    model = load_model(NANO)
-    with torch.no_grad():
-        next(p for p in model.parameters() if p.is_floating_point()).view(-1)[0] += 0.5
-    path = tmp_path_factory.mktemp("perturbed") / "best_model.pth"
-    save_checkpoint(path, model)
-    return path
+def perturbed(perturbed_nano) -> Path:
+    """Nano with one weight changed (conftest `perturbed_nano`)."""
+    return perturbed_nano
 
 
 def test_the_export_records_the_weights_sha256_in_the_manifest_and_every_graph(nano_export):
@@ -105,7 +100,7 @@ def test_the_same_weights_saved_again_are_accepted(nano_export, tmp_path):
     StreamingEngine(load_model(tmp_path / "best_model.pth"), EngineConfig(runtime="onnx", onnx_dir=nano_export))
 
 
-def test_old_exports_and_foreign_graph_files_are_refused(nano_export, perturbed, tmp_path):
+def test_old_exports_and_foreign_graph_files_are_refused(nano_export, perturbed_nano_export, tmp_path):
     old = tmp_path / "old"
     shutil.copytree(nano_export, old)
     manifest = json.loads((old / "engine.json").read_text())
@@ -113,16 +108,14 @@ def test_old_exports_and_foreign_graph_files_are_refused(nano_export, perturbed,
     (old / "engine.json").write_text(json.dumps(manifest))
     with pytest.raises(UserError, match=r"does not record the SHA-256 of its weights .*export again"):
         StreamingEngine(load_model(NANO), EngineConfig(runtime="onnx", onnx_dir=old))
-    mixed = tmp_path / "mixed"
-    assert main(["export-onnx", "--checkpoint", str(perturbed), "--out", str(mixed)]) == 0
+    mixed = shutil.copytree(perturbed_nano_export, tmp_path / "mixed")
     shutil.copy(nano_export / "head.onnx", mixed / "head.onnx")
     with pytest.raises(UserError, match=r"head\.onnx: this graph was not exported with the weights"):
         OnnxRuntime(mixed)
 
 
-def test_exporting_again_replaces_the_whole_folder(nano_export, perturbed, tmp_path, capsys):
-    out = tmp_path / "graphs"
-    assert main(["export-onnx", "--checkpoint", str(perturbed), "--out", str(out), "--int8"]) == 0
+def test_exporting_again_replaces_the_whole_folder(perturbed, perturbed_nano_export, tmp_path, capsys):
+    out = shutil.copytree(perturbed_nano_export, tmp_path / "graphs")  # an export of other weights, with int8
     assert (out / "encoder.int8.onnx").is_file() and (out / "head.int8.onnx").is_file()
     assert main(["export-onnx", "--checkpoint", str(NANO), "--out", str(out)]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["encoder.onnx", "engine.json", "head.onnx"]
@@ -141,7 +134,8 @@ def test_exporting_again_replaces_the_whole_folder(nano_export, perturbed, tmp_p
 
 
 def test_the_user_cache_is_keyed_and_checked_by_the_weights(nano_export, perturbed, tmp_path, monkeypatch):
-    """A cache folder of the model's digest that holds other graphs (here: nano's) is exported again."""
+    """A cache folder of the model's digest that holds other graphs (here: nano's) is exported again, once: the
+    next engine of those weights runs the cached graphs."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     model = load_model(perturbed)
     digest = reference_sha256(model)
@@ -151,6 +145,9 @@ def test_the_user_cache_is_keyed_and_checked_by_the_weights(nano_export, perturb
     StreamingEngine(model, EngineConfig(runtime="onnx", precision="int8"))
     manifest = json.loads((folder / "engine.json").read_text())
     assert manifest["weights_sha256"] == digest and set(manifest["files"]) == {"fp32", "int8"}
+    stamp = (folder / "engine.json").stat().st_mtime_ns
+    StreamingEngine(model, EngineConfig(runtime="onnx"))
+    assert (folder / "engine.json").stat().st_mtime_ns == stamp
 
 
 def test_exporting_into_the_cache_leaves_a_running_engine_alone(tmp_path, monkeypatch):
