@@ -52,7 +52,7 @@ MODULES = {
                           ("-k", "not video")),  # the replay → video, summary, recording test: 5 s, integration only
     "frame_ring": Module("inference/engine/frame_ring.py", ("tests/test_frame_ring.py", "tests/test_streaming.py"),
                          ("-k", "not official_offline")),  # 14 s: the stitched output against the offline protocol
-    "streaming_engine": Module("inference/engine/streaming_engine.py", ("tests/test_streaming.py",),
+    "streaming_engine": Module("inference/engine/streaming_engine.py", ("tests/test_streaming_edges.py", "tests/test_streaming.py"),
                                ("-k", "not official_offline")),
     "tactile_layout": Module("devices/tactile_layout.py", ("tests/test_tactile_layout_edges.py", "tests/test_tactile_layout.py")),
     "output_safety": Module("devices/output_safety.py", ("tests/test_output_safety.py",)),

@@ -1,0 +1,103 @@
+"""The streaming engine's bookkeeping by value (found by mutation testing, docs/testing.md): latency from the
+injected clock, stage timings in milliseconds, when a window counts as exact, what `drain()` returns per output
+position, `reset()`, and the status line per hand."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.streaming_engine import StreamingEngine
+from touchanything.inference.model.model_config import preset
+from touchanything.inference.model.touch_model import TouchAnything
+
+
+@pytest.fixture(scope="module")
+def model() -> TouchAnything:
+    torch.manual_seed(3)
+    return TouchAnything(preset("nano")).eval()
+
+
+def stream(model: TouchAnything, frames: int, seed: int = 0, valid: np.ndarray | None = None) -> list[Snapshot]:
+    rng = np.random.default_rng(seed)
+    size = model.config.image_size
+    images = {v: rng.integers(0, 256, (frames, size, size, 3), dtype=np.uint8) for v in VIEW_NAMES}
+    joints = (rng.normal(0, 2, (frames, 42, 3)) + [0, 0, 40]).astype(np.float32)
+    valid = np.ones((frames, 2), bool) if valid is None else valid
+    return [Snapshot(i, i * 33_333, {v: images[v][i] for v in VIEW_NAMES}, joints[i], valid[i]) for i in range(frames)]
+
+
+def run(engine: StreamingEngine, snapshots) -> dict:
+    return {p.frame_index: p for s in snapshots for p in engine.step(s)}
+
+
+def test_latency_is_the_injected_clock_minus_the_capture_time(model):
+    snapshots = stream(model, 4)
+    engine = StreamingEngine(model, EngineConfig(every=2), clock=lambda: 5.0)  # 5 s = 5 000 000 µs
+    got = run(engine, snapshots)
+    assert [got[i].latency_ms for i in range(4)] == [(5_000_000 - i * 33_333) / 1000 for i in range(4)]
+    assert got[1].held and got[1].latency_ms == pytest.approx(4966.667)
+    (none,) = engine.step(dataclasses.replace(snapshots[3], frame_index=7, images={}))
+    assert none.pressure is None and none.latency_ms == pytest.approx((5_000_000 - 3 * 33_333) / 1000)
+
+
+def test_stage_timings_are_milliseconds(model):
+    got = run(StreamingEngine(model, EngineConfig()), stream(model, 2))
+    timings = got[1].timings_ms
+    assert set(timings) == {"preprocess", "encode", "head", "total"}
+    assert all(0.0 < value < 60_000 for value in timings.values())
+    assert timings["encode"] > 0.01 and timings["head"] > 0.01  # a forward pass takes more than 10 µs
+    assert timings["total"] >= timings["preprocess"] + timings["encode"] + timings["head"]
+
+
+def test_a_window_is_exact_once_every_ideal_frame_is_cached_and_none_lies_before_the_start(model):
+    snapshots = stream(model, 24)
+    got = run(StreamingEngine(model, EngineConfig()), [s for s in snapshots if s.frame_index != 20])
+    assert [i for i, p in sorted(got.items()) if p.window_exact] == [14, 15, 16, 17, 18, 19, 21, 23]
+    assert got[13].status == "ok" and got[14].hands_predicted == (True, True)
+
+
+def test_drain_returns_what_each_output_position_holds_back(model):
+    snapshots = stream(model, 20, seed=4)
+    assert StreamingEngine(model, EngineConfig()).drain() == []
+    newest = StreamingEngine(model, EngineConfig())
+    run(newest, snapshots)
+    assert newest.drain() == []
+    centre = StreamingEngine(model, EngineConfig(output="centre"))
+    emitted = run(centre, snapshots)
+    assert sorted(emitted) == list(range(14))  # the window ending on 19 has frame 13 at position 4
+    drained = centre.drain()
+    assert [p.frame_index for p in drained] == list(range(14, 20))
+    # Each with the newest-frame output of the window ending on it, from the 15 frames still cached (5–19): only
+    # the window ending on 19 has all its ideal frames.
+    assert [p.window_exact for p in drained] == [False] * 5 + [True]
+    reference = run(StreamingEngine(model, EngineConfig()), snapshots)
+    assert np.allclose(drained[-1].pressure, reference[19].pressure, atol=1e-6, equal_nan=True)
+    assert centre.drain() == []  # nothing is held twice
+    stitched = StreamingEngine(model, EngineConfig(output="stitched"))
+    emitted = run(stitched, snapshots)
+    assert sorted(emitted) == list(range(6))  # the first window not padded ends on 14; frame 5 is done at 19
+    assert [p.frame_index for p in stitched.drain()] == list(range(6, 20))
+    assert stitched.drain() == []
+
+
+def test_reset_forgets_the_cache_and_what_was_emitted(model):
+    snapshots = stream(model, 18, seed=6)
+    engine = StreamingEngine(model, EngineConfig(output="centre"))
+    run(engine, snapshots)
+    engine.reset()
+    again = run(engine, snapshots[:12])
+    fresh = run(StreamingEngine(model, EngineConfig(output="centre")), snapshots[:12])
+    assert sorted(again) == sorted(fresh) == list(range(6))
+    assert all(np.array_equal(again[i].pressure, fresh[i].pressure, equal_nan=True) for i in fresh)
+
+
+def test_the_status_names_the_hand_without_a_pose(model):
+    valid = np.array([[True, True], [False, True], [True, False], [False, False]])
+    got = run(StreamingEngine(model, EngineConfig()), stream(model, 4, valid=valid))
+    assert [got[i].status for i in range(4)] == ["ok", "left hand: no pose", "right hand: no pose", "no valid hand pose"]
+    assert [got[i].hands_predicted for i in range(4)] == [(True, True), (False, True), (True, False), (False, False)]
