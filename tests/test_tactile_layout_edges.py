@@ -1,7 +1,9 @@
 """The tactile layout files at their edges, by value: the last cell and slot that are allowed and the first that are
-not, slot 0 as a real sensor, the bend-cell file's checks, and the grid ↔ raw conversions with leading axes."""
+not, slot 0 as a real sensor, the bend-cell file's checks, the grid ↔ raw conversions with leading axes, the error
+messages, and that the layout cannot be changed once loaded (found by mutation testing, docs/testing.md)."""
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -120,3 +122,21 @@ def test_bend_cells_at_the_grid_edges_and_on_slot_0(tmp_path):
     with pytest.raises(DataError, match="bend cell 1,20 is outside the layout") as err:
         TactileLayout.from_dir(tmp_path)
     assert err.value.field == "right"
+
+
+def test_the_messages_name_the_allowed_range_and_the_first_bend_cell_outside(tmp_path):
+    path = tmp_path / "map.json"
+    path.write_text(json.dumps({"1,1": 256}))
+    with pytest.raises(DataError) as err:
+        read_mapping(path)
+    assert err.value.problem == "sensor index must be an integer 0–255"
+    write_layout(tmp_path, bend={"left": [{"row": 9, "col": 9}], "right": [{"row": 1, "col": 0}, {"row": 4, "col": 4}]})
+    with pytest.raises(DataError) as err:
+        TactileLayout.from_dir(tmp_path)
+    assert (err.value.field, err.value.problem) == ("left", "bend cell 9,9 is outside the layout")
+
+
+def test_the_layout_is_frozen(tmp_path):
+    layout = TactileLayout.from_dir(write_layout(tmp_path))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        layout.bend = np.zeros((2, 21, 21), bool)
