@@ -43,11 +43,16 @@ class Module:
     path: str
     tests: tuple[str, ...]
     pytest_args: tuple[str, ...] = ()
+    functions: tuple[str, ...] = ()
+    """Only the mutants inside these functions / methods / classes (cosmic-ray's definition name); () all."""
 
 
 MODULES = {
     "metrics": Module("inference/evaluation/metrics.py", ("tests/test_metrics.py", "tests/test_metric_edges.py"),
                       ("-k", "not million")),  # the million-frame float64 test takes 10 s and sees no operator mutant
+    "evaluation_summary": Module("inference/evaluation/evaluation.py", ("tests/test_evaluation_summary.py",),
+                                 functions=("trajectory_metrics", "EvaluationResult", "label", "summary",
+                                            "vision_share_summary")),  # not `evaluate`: it runs a model
     "frame_facts": Module("viz/frame_facts.py", ("tests/test_frame_facts_edges.py", "tests/test_frame_facts.py"),
                           ("-k", "not video")),  # the replay → video, summary, recording test: 5 s, integration only
     "frame_ring": Module("inference/engine/frame_ring.py", ("tests/test_frame_ring.py", "tests/test_streaming.py"),
@@ -100,6 +105,10 @@ EQUIVALENT: dict[tuple[str, str], str] = {
     (_M, "if gt.shape[ 1] == 0:"):
         "axis 1 is the two hands, never 0, so the early return is skipped for an empty chunk: it only saves work "
         "(an empty chunk adds 0 to every sum and a (2, 0) flag array)",
+    ("devices/tactile_layout.py", "out = np.asarray(raw, dtype=np.float32)[..., np.where(valid, self.sensor_index[hand], -1)]"):
+        "the slot read for a cell outside the layout is a placeholder: the next line sets those cells to NaN",
+    ("devices/tactile_layout.py", "out = np.asarray(raw, dtype=np.float32)[..., np.where(valid, self.sensor_index[hand], 1)]"):
+        "the slot read for a cell outside the layout is a placeholder: the next line sets those cells to NaN",
     ("devices/tactile_layout.py", "values = grid[..., h, :, :][..., cells].reshape(- 2, slots.size)"):
         "numpy (2.4) takes any negative size as the one to infer, so reshape(-2, n) is reshape(-1, n)",
     (_M, "if gt.shape[0] == -1:"):
@@ -177,7 +186,7 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
     env = test_env(clone)
     missing = [t for t in module.tests if not (clone / t).exists()]
     tests = tuple(t for t in module.tests if t not in missing)
-    module = Module(module.path, tests, module.pytest_args)
+    module = Module(module.path, tests, module.pytest_args, module.functions)
     began = time.perf_counter()
     baseline = subprocess.run(shlex.split(test_command(module)), cwd=clone, env=env, capture_output=True, text=True)
     baseline_s = time.perf_counter() - began
@@ -203,6 +212,8 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
         mutation = item["mutations"][0]
         if result is None and tuple(mutation["start_pos"]) in notes:
             skip[item["job_id"]] = "in an annotation"
+        elif result is None and module.functions and mutation.get("definition_name") not in module.functions:
+            skip[item["job_id"]] = "outside the functions under test"
     subprocess.run([str(cr / "python"), "-c", _SKIP_SCRIPT, str(session), json.dumps(skip)], check=True)
     began = time.perf_counter()
     subprocess.run([str(cr / "cosmic-ray"), "exec", str(config), str(session)], cwd=clone, env=env, check=True)
@@ -232,7 +243,8 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
     return classify({"path": module.path, "tests": list(tests), "pytest_args": list(module.pytest_args),
             "missing_tests": missing, "baseline": baseline.stdout.strip().splitlines()[-1].strip("= "),
             "baseline_s": round(baseline_s, 1), "timeout_s": timeout,
-            "seconds": round(seconds, 1), **counts, "skipped_in_annotations": len(skip), "survivors": survivors})
+            "seconds": round(seconds, 1), **counts, "functions": list(module.functions),
+            "skipped_in_annotations": sum(reason == "in an annotation" for reason in skip.values()), "survivors": survivors})
 
 
 def classify(row: dict) -> dict:
@@ -275,7 +287,8 @@ def report(results: dict, before: dict | None = None) -> str:
              "score (non-equivalent) | before | baseline run | time |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, row in results["modules"].items():
-        where = f"| {name} (`{row['path']}`) | {row.get('commit', '')} "
+        only = f": only {', '.join(f'`{f}`' for f in row['functions'])}" if row.get("functions") else ""
+        where = f"| {name} (`{row['path']}`{only}) | {row.get('commit', '')} "
         if "error" in row:
             lines.append(f"{where}| {', '.join(row['tests'])} | {row['error']} | | | | | | | | | | |")
             continue
