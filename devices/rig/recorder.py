@@ -157,7 +157,10 @@ class Recorder:
         with self._lock:
             self._counters, self._error = RecorderCounters(), None
             self._queue, self._accepting = queue.Queue(maxsize=self.config.queue_frames), True
-        self._thread = threading.Thread(target=self._run, args=(writer,), name="recorder", daemon=True)
+        # The first fsync period starts here, before the thread does: a writer thread that starts late (a busy
+        # CPU) must not push the first sync of the frames queued meanwhile further out than `fsync_s`.
+        started = time.monotonic()
+        self._thread = threading.Thread(target=self._run, args=(writer, started), name="recorder", daemon=True)
         self._thread.start()
 
     def write(self, snapshot: Snapshot) -> None:
@@ -225,11 +228,12 @@ class Recorder:
         except OSError:
             return 0
 
-    def _run(self, writer: RawEpisodeWriter) -> None:
-        """Writer thread: write each queued Snapshot until `_STOP`, fsyncing every `fsync_s` seconds while
-        something is unsynced (also when no Snapshot comes), then close the episode (fsyncing it)."""
+    def _run(self, writer: RawEpisodeWriter, started: float) -> None:
+        """Writer thread: write each queued Snapshot until `_STOP`, fsyncing every `fsync_s` seconds (the first
+        period from `started`, when `start()` ran) while something is unsynced (also when no Snapshot comes), then
+        close the episode (fsyncing it)."""
         every = self.config.fsync_s
-        last_sync, unsynced = time.monotonic(), False
+        last_sync, unsynced = started, False
         while True:
             syncing = every is not None and unsynced and self._error is None  # no syncs after an error
             wait = max(0.0, last_sync + every - time.monotonic()) if syncing else None
