@@ -52,23 +52,27 @@ def _rows() -> dict[str, list[str]]:
     return rows
 
 
-def _settle() -> None:
-    time.sleep(0.6)  # a few table refreshes (every 0.1 s) and rendered frames
+def _settle(dashboard: Dashboard) -> None:
+    """A few table refreshes (every 0.1 s), then two frames rendered after them: on a busy CPU the render loop
+    may fall behind the sleep; the frames say it went round with what the sleep allowed for."""
+    time.sleep(0.6)
+    frames = dashboard.stats.frames
+    wait_for(lambda: dashboard.stats.frames >= frames + 2, "two more rendered frames")
 
 
 def drive(session: ReplaySession, dashboard: Dashboard, found: dict) -> None:
     try:
         wait_for(lambda: (p := session.state().prediction) is not None and p.frame_index >= 12, "frames with contact")
         session.pause()
-        _settle()
+        _settle(dashboard)
         found["paused"] = {"rows": _rows(), "performance": dpg.get_value("performance_text")}
         found["steady"] = _metric_cells(dashboard)
         dpg.get_item_callback("threshold")("threshold", 0.3)
-        _settle()
+        _settle(dashboard)
         found["after threshold"] = _metric_cells(dashboard)
         session.seek(10)
         wait_for(lambda: getattr(dashboard.shown.get("prediction"), "frame_index", None) == 10, "frame 10 on screen")
-        _settle()
+        _settle(dashboard)
         found["title"] = dpg.get_value("title_predicted")
         found["posed"] = session.state().facts.posed
         found["rect"] = dashboard.panel_rects["predicted"]
@@ -85,11 +89,11 @@ def drive(session: ReplaySession, dashboard: Dashboard, found: dict) -> None:
         wait_for(lambda: dpg.get_value("message_text").startswith("screenshot saved"), "the screenshot's message")
         found["with the screenshot's message"] = _places()
         dpg.get_item_callback("record_button")()
-        _settle()
+        _settle(dashboard)
         found["record message"] = dpg.get_value("message_text")
         session.message = LONG_MESSAGE
         wait_for(lambda: dpg.get_value("message_text") == LONG_MESSAGE, "the long message")
-        _settle()
+        _settle(dashboard)
         found["with a long message"] = _places()
         found["without a message"] = before
         found["message size"] = tuple(dpg.get_item_rect_size("message_text"))

@@ -22,9 +22,12 @@ from touchanything.viz.dashboard.dashboard_controls import DEVICE_COLUMNS
 
 
 def render_rate(dashboard: Dashboard, seconds: float) -> float:
-    frames = dashboard.stats.frames
+    """Frames rendered per second over about `seconds`, divided by the time that really went by (a busy CPU
+    wakes the sleeper late: dividing by `seconds` would then overstate the rate)."""
+    frames, began = dashboard.stats.frames, time.monotonic()
     time.sleep(seconds)
-    return (dashboard.stats.frames - frames) / seconds
+    frames, elapsed = dashboard.stats.frames - frames, time.monotonic() - began
+    return frames / elapsed
 
 
 def shown_everywhere(dashboard: Dashboard, session: ReplaySession) -> dict:
