@@ -258,7 +258,8 @@ def test_live_headless_records_the_simulated_rig(tmp_path, capsys):
     cameras = rows["/cameras/ego"].data_frames("EncodedImage:blob")
     # every snapshot and prediction was logged or, when the logger fell behind (a busy machine), dropped and counted
     assert logged + dropped >= snapshots and len(cameras) >= 10  # (the rig runs on a little after the summary)
-    assert cameras == sorted(set(cameras)) and len(cameras) <= snapshots + 3  # + what 0.1 s of 30 fps adds
+    # + the ticks between the summary and the rig's stop: 0.5 s of 30 fps on a busy CPU
+    assert cameras == sorted(set(cameras)) and len(cameras) <= snapshots + 15, (len(cameras), snapshots)
     jpeg = np.frombuffer(bytes(rows["/cameras/ego"].at("EncodedImage:blob", cameras[-1])[0]), np.uint8)
     assert cv2.imdecode(jpeg, cv2.IMREAD_COLOR).shape == (240, 320, 3)  # the live rig's frames at half size
     assert len(rows["/world/surface/left"].data_frames("Mesh3D:vertex_positions")) > 0
