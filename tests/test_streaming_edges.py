@@ -1,6 +1,6 @@
 """The streaming engine's bookkeeping by value (found by mutation testing, docs/testing.md): latency from the
 injected clock, stage timings in milliseconds, when a window counts as exact, what `drain()` returns per output
-position, `reset()`, and the status line per hand."""
+position, `reset()` and a seek (the every-k-th count restarts), and the status line per hand."""
 from __future__ import annotations
 
 import dataclasses
@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.inference.engine import streaming_engine
 from touchanything.inference.engine.engine_config import EngineConfig
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.model_config import preset
@@ -101,3 +102,21 @@ def test_the_status_names_the_hand_without_a_pose(model):
     got = run(StreamingEngine(model, EngineConfig()), stream(model, 4, valid=valid))
     assert [got[i].status for i in range(4)] == ["ok", "left hand: no pose", "right hand: no pose", "no valid hand pose"]
     assert [got[i].hands_predicted for i in range(4)] == [(True, True), (False, True), (True, False), (False, False)]
+
+
+def test_after_a_seek_every_kth_frame_counts_from_the_new_start(model):
+    snapshots = stream(model, 8, seed=7)
+    engine = StreamingEngine(model, EngineConfig(every=3))
+    first = run(engine, snapshots[:5])
+    again = run(engine, snapshots)  # frame 0 again: a seek
+    assert [i for i, p in first.items() if not p.held] == [0, 3]
+    assert [i for i, p in again.items() if not p.held] == [0, 3, 6]
+
+
+def test_timings_are_the_perf_counter_differences_times_a_thousand(model, monkeypatch):
+    ticks = iter(np.arange(0.0, 1000.0, 0.5))
+    monkeypatch.setattr(streaming_engine.time, "perf_counter", lambda: float(next(ticks)))
+    (prediction,) = StreamingEngine(model, EngineConfig()).step(stream(model, 1)[0])
+    timings = prediction.timings_ms
+    assert set(timings) == {"preprocess", "encode", "head", "total"}
+    assert all(value > 0 and value % 500.0 == 0 for value in timings.values()), timings  # steps of 0.5 s
