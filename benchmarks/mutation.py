@@ -180,8 +180,9 @@ def annotation_lines(source: str) -> set[tuple[int, int]]:
     return spans
 
 
-def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path) -> dict:
-    """The mutation run of one module: counts, score, survivors."""
+def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path, earlier: dict | None = None) -> dict:
+    """The mutation run of one module: counts, score, survivors. `earlier`: an earlier run's row of the same source
+    whose killed mutants are taken as they are (tests added since can only kill more): only its survivors run."""
     cr = venv / "bin"
     env = test_env(clone)
     missing = [t for t in module.tests if not (clone / t).exists()]
@@ -208,12 +209,15 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
     source = (clone / module.path).read_text()
     notes = annotation_lines(source)
     skip = {}
+    retest = {(v["operator"], v["occurrence"]) for v in earlier["survivors"]} if earlier is not None else set()
     for item, result in dump(cr, session, clone):
         mutation = item["mutations"][0]
         if result is None and tuple(mutation["start_pos"]) in notes:
             skip[item["job_id"]] = "in an annotation"
         elif result is None and module.functions and mutation.get("definition_name") not in module.functions:
             skip[item["job_id"]] = "outside the functions under test"
+        elif result is None and earlier is not None and (mutation["operator_name"], mutation["occurrence"]) not in retest:
+            skip[item["job_id"]] = "killed in the earlier run"
     subprocess.run([str(cr / "python"), "-c", _SKIP_SCRIPT, str(session), json.dumps(skip)], check=True)
     began = time.perf_counter()
     subprocess.run([str(cr / "cosmic-ray"), "exec", str(config), str(session)], cwd=clone, env=env, check=True)
@@ -240,7 +244,13 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
                           "occurrence": mutation["occurrence"], "function": mutation.get("definition_name"),
                           "source": text, "diff": result["diff"]})
     survivors.sort(key=lambda s: (s["line"], s["column"], s["operator"]))
-    return classify({"path": module.path, "tests": list(tests), "pytest_args": list(module.pytest_args),
+    extra = {}
+    if earlier is not None:
+        counts["mutants"] += earlier["mutants"] - len(retest)
+        for key in ("killed", "timeouts", "incompetent"):
+            counts[key] += earlier[key]
+        extra = {"survivors_retested_from": earlier["commit"], "earlier_seconds": earlier["seconds"]}
+    return classify({**extra, "path": module.path, "tests": list(tests), "pytest_args": list(module.pytest_args),
             "missing_tests": missing, "baseline": baseline.stdout.strip().splitlines()[-1].strip("= "),
             "baseline_s": round(baseline_s, 1), "timeout_s": timeout,
             "seconds": round(seconds, 1), **counts, "functions": list(module.functions),
@@ -264,6 +274,13 @@ def dump(cr: Path, session: Path, clone: Path) -> list[tuple[dict, dict | None]]
     out = subprocess.run([str(cr / "cosmic-ray"), "dump", str(session)], cwd=clone, check=True, capture_output=True,
                          text=True).stdout
     return [tuple(json.loads(line)) for line in out.splitlines() if line.strip()]
+
+
+def minutes(row: dict) -> str:
+    if "survivors_retested_from" not in row:
+        return f"{row['seconds'] / 60:.1f} min"
+    return (f"{row['earlier_seconds'] / 60:.1f} min ({row['survivors_retested_from']}), then its survivors again: "
+            f"{row['seconds'] / 60:.1f} min")
 
 
 def report(results: dict, before: dict | None = None) -> str:
@@ -299,7 +316,7 @@ def report(results: dict, before: dict | None = None) -> str:
         lines.append(f"{where}| {tests} | {row['mutants']} | {row['killed']} | {row['timeouts']} | {row['survived']} | "
                      f"{row['equivalent']} | {row['incompetent']} | {100 * row['score']:.1f} % | "
                      f"{100 * row['score_non_equivalent']:.1f} % | "
-                     f"{earlier} | {row['baseline_s']} s ({row.get('baseline', '')}) | {row['seconds'] / 60:.0f} min |")
+                     f"{earlier} | {row['baseline_s']} s ({row.get('baseline', '')}) | {minutes(row)} |")
     for name, row in results["modules"].items():
         if "error" in row:
             continue
@@ -324,6 +341,9 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "bench" / "mutation", help="OUT.json and OUT.md")
     parser.add_argument("--rev", default="HEAD", help="the commit to mutate and test (default HEAD; an earlier one "
                         "gives the score before tests were added: its missing test files are left out)")
+    parser.add_argument("--survivors-only", action="store_true", help="run only the survivors of OUT.json's earlier run "
+                        "of each module (its killed mutants stay killed: added tests only kill more); a module whose "
+                        "source changed since runs in full")
     parser.add_argument("--report-only", action="store_true", help="run nothing: apply `EQUIVALENT` to OUT.json "
                         "(and OUT_before.json) and write OUT.md again")
     parser.add_argument("--keep", action="store_true", help="keep the scratch folder (the clone and the sessions)")
@@ -355,7 +375,12 @@ def main() -> int:
         clone = make_clone(scratch, commit)
         for name in args.modules:
             print(f"mutation: {name} ({MODULES[name].path}) ...", flush=True)
-            row = run_module(name, MODULES[name], clone, args.venv, scratch)
+            earlier = results["modules"].get(name) if args.survivors_only else None
+            if earlier is not None and ("error" in earlier or subprocess.run(
+                    ["git", "diff", "--quiet", earlier["commit"], commit, "--", MODULES[name].path], cwd=ROOT).returncode != 0):
+                print(f"mutation: {name}: the source changed since {earlier.get('commit')} (or that run failed): every mutant runs")
+                earlier = None
+            row = run_module(name, MODULES[name], clone, args.venv, scratch, earlier)
             row["commit"] = commit
             if "history" in results["modules"].get(name, {}):
                 row["history"] = results["modules"][name]["history"]
