@@ -1,6 +1,7 @@
 """The streaming engine's bookkeeping by value (found by mutation testing, docs/testing.md): latency from the
 injected clock, stage timings in milliseconds, when a window counts as exact, what `drain()` returns per output
-position, `reset()` and a seek (the every-k-th count restarts), and the status line per hand."""
+position, `reset()` and a seek (the every-k-th count restarts), the status line per hand, and the joint ids the head
+gets."""
 from __future__ import annotations
 
 import dataclasses
@@ -120,3 +121,18 @@ def test_timings_are_the_perf_counter_differences_times_a_thousand(model, monkey
     timings = prediction.timings_ms
     assert set(timings) == {"preprocess", "encode", "head", "total"}
     assert all(value > 0 and value % 500.0 == 0 for value in timings.values()), timings  # steps of 0.5 s
+
+
+def test_the_head_gets_the_official_joint_ids_of_the_hands_it_predicts(model):
+    valid = np.array([[True, True], [False, True], [True, False]])
+    engine = StreamingEngine(model, EngineConfig())
+    calls = []
+    head = engine.runtime.head
+
+    def recording(tokens, joints, joint_ids, positions):
+        calls.append(joint_ids.tolist())
+        return head(tokens, joints, joint_ids, positions)
+
+    engine.runtime.head = recording
+    run(engine, stream(model, 3, valid=valid))
+    assert calls == [list(range(42)), list(range(21, 42)), list(range(21))]  # 0–20 left, 21–41 right

@@ -1,0 +1,190 @@
+"""The output rule's helpers at their edges, by value (found by mutation testing, docs/testing.md): whole folders
+and report folders, names at the file system's length limit, what a dead process left behind, the OS's reason in
+one line, and a sync that fails after the rename."""
+from __future__ import annotations
+
+import errno
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from touchanything.devices import output_safety
+from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import (
+    PARTIAL,
+    check_name_lengths,
+    check_output,
+    check_outside,
+    check_report_folder,
+    check_writable,
+    describe,
+    fsync_fd,
+    fsync_path,
+    remove_left_behind,
+    replacing,
+    replacing_folder,
+    temporary_path,
+    write_text,
+)
+
+
+def dead_pid() -> int:
+    """The id of a process that has ended."""
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid
+
+
+def refused(message: str, *args, **kwargs) -> str:
+    with pytest.raises(UserError) as err:
+        check_output(*args, **kwargs)
+    assert message in str(err.value), str(err.value)
+    return str(err.value)
+
+
+def test_a_whole_folder_output(tmp_path):
+    episode = tmp_path / "ep"
+    (episode / "inner").mkdir(parents=True)
+    (episode / "chest.mp4").write_bytes(b"video")
+    assert "holds the input" in refused("choose a folder outside it", tmp_path, [episode], True, whole=True)
+    assert refused("is a folder of the input", episode / "inner", [episode], True, whole=True).startswith(f"{episode / 'inner'}:")
+    check_output(episode / "new_dataset", [episode], whole=True)  # a new folder inside an input replaces nothing
+    out = tmp_path / "out"
+    out.mkdir()
+    check_output(out, [episode], whole=True)  # empty: nothing to lose
+    (out / "x").write_text("")
+    refused("folder is not empty; pass --overwrite", out, [episode], whole=True)
+    check_output(out, [episode], overwrite=True, whole=True)
+    refused("exists and is not a folder", out / "x", [], whole=True)
+    check_output(out, [episode], folder=True)  # a folder of named files: its files are checked one by one
+    refused("is a folder; give the file to write", out, [])
+
+
+def test_a_hard_link_of_an_input_file_is_that_input(tmp_path):
+    source = tmp_path / "a.hdf5"
+    source.write_bytes(b"data")
+    os.link(source, tmp_path / "b.hdf5")
+    message = refused("under another name (a hard link)", tmp_path / "b.hdf5", [source], True)
+    assert message.startswith(f"{tmp_path / 'b.hdf5'}: is the input")
+
+
+def test_check_outside(tmp_path):
+    folder = tmp_path / "dataset"
+    folder.mkdir()
+    for out in (folder, folder / "sub", folder / "sub" / "deeper"):
+        with pytest.raises(UserError, match="would lie inside the input"):
+            check_outside(out, [tmp_path / "elsewhere", folder])
+    check_outside(tmp_path / "dataset2", [folder])
+    check_outside(tmp_path, [folder])
+    (tmp_path / "file").write_text("")
+    check_outside(tmp_path / "file" / "x", [tmp_path / "file"])  # a file is not a folder to lie inside
+
+
+def test_names_at_the_file_systems_limit(tmp_path):
+    limit = os.pathconf(tmp_path, "PC_NAME_MAX")
+    extra = len(f".{PARTIAL}{os.getpid()}")  # the temporary name adds a dot, ".partial-" and the process id
+    check_name_lengths(tmp_path / "new" / ("a" * (limit - extra)))
+    with pytest.raises(UserError, match=f"the temporary name it is written under is {limit + 1} bytes, longer than the file "
+                                        f"system allows \\({limit}\\)"):
+        check_name_lengths(tmp_path / "new" / ("a" * (limit - extra + 1)))
+    with pytest.raises(UserError, match=f"the name {'é' * 24}… is {2 * (limit // 2 + 1)} bytes"):
+        check_name_lengths(tmp_path / "new" / ("é" * (limit // 2 + 1)) / "x")  # bytes count, not characters
+    check_name_lengths(Path("relative") / "x")
+
+
+def test_a_report_folder_replaces_its_own_files_unless_kept(tmp_path):
+    out = tmp_path / "report"
+    out.mkdir()
+    (out / "summary.md").write_text("earlier")
+    check_report_folder(out, ["summary.md", "rows.json"])
+    with pytest.raises(UserError, match="summary.md: exists; pass --overwrite"):
+        check_report_folder(out, ["summary.md"], keep=True)
+    check_report_folder(out, ["summary.md"], keep=True, overwrite=True)
+    (out / "rows.json").mkdir()
+    with pytest.raises(UserError, match="rows.json: is a folder"):
+        check_report_folder(out, ["summary.md", "rows.json"])
+
+
+def test_check_writable_walks_up_to_the_nearest_existing_folder(tmp_path):
+    check_writable(tmp_path / "a" / "b" / "c")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(UserError, match=f"cannot be created \\({tmp_path / 'file'} is not a folder\\)"):
+        check_writable(tmp_path / "file" / "sub")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]  # the probe is removed
+
+
+def test_describe_gives_the_os_reason_in_one_line():
+    assert describe(OSError(errno.ENOSPC, "HDF5 said something else")) == "No space left on device"
+    assert describe(OSError(None, "its own reason")) == "its own reason"
+    assert describe(OSError("first line\nsecond line")) == "first line"
+    assert describe(OSError()) == "OSError"
+
+
+def test_the_temporary_name_is_hidden_beside_the_output(tmp_path):
+    assert temporary_path(tmp_path / "a.hdf5") == tmp_path / f".a.hdf5.partial-{os.getpid()}"
+
+
+def test_only_what_dead_processes_left_is_removed(tmp_path, capsys):
+    dead = dead_pid()
+    gone = [tmp_path / f".a.hdf5.partial-{dead}", tmp_path / f".data.old-{dead}"]
+    gone[0].write_text("half")
+    (gone[1] / "sub").mkdir(parents=True)
+    kept = [tmp_path / f".b.partial-{os.getpid()}", tmp_path / f".c.partial-{os.getppid()}", tmp_path / f"d.partial-{dead}",
+            tmp_path / f".e.partial-{dead}x", tmp_path / f".partial-{dead}"]
+    for path in kept:
+        path.write_text("")
+    assert sorted(remove_left_behind(tmp_path)) == sorted(gone)
+    assert sorted(tmp_path.iterdir()) == sorted(kept)
+    err = capsys.readouterr().err.splitlines()
+    assert sorted(err) == sorted(f"removed {p}: left half-written by an interrupted run (process {dead})" for p in gone)
+    assert remove_left_behind(tmp_path / "absent") == []
+
+
+def test_fsync_of_a_special_file_is_not_an_error_and_a_failure_names_the_path(tmp_path):
+    fsync_path(Path("/dev/null"))
+    fsync_path(tmp_path, directory=True)
+    with pytest.raises(OSError) as err:
+        fsync_path(tmp_path / "absent")
+    assert err.value.filename == str(tmp_path / "absent") and err.value.errno == errno.ENOENT
+    read, write = os.pipe()
+    os.close(read)
+    os.close(write)
+    with pytest.raises(OSError) as err:
+        fsync_fd(write, tmp_path / "closed")
+    assert err.value.filename == str(tmp_path / "closed") and err.value.errno == errno.EBADF
+
+
+def test_a_sync_that_fails_keeps_the_complete_file_and_says_so(tmp_path, monkeypatch):
+    def failing(fd):
+        raise OSError(errno.EIO, "I/O error")
+
+    monkeypatch.setattr(output_safety.os, "fsync", failing)
+    out = tmp_path / "sub" / "r.md"
+    with pytest.raises(UserError, match=r"r.md: written, but not confirmed on the disk \(Input/output error\)"):
+        write_text(out, "complete")
+    assert out.read_text() == "complete" and sorted(p.name for p in out.parent.iterdir()) == ["r.md"]
+
+
+def test_a_folder_replaces_an_empty_one_and_leaves_no_old_copy(tmp_path):
+    out = tmp_path / "dataset"
+    with replacing_folder(out) as folder:
+        (folder / "a").write_text("1")
+    out_b = tmp_path / "empty"
+    out_b.mkdir()
+    with replacing_folder(out_b) as folder:
+        (folder / "b").write_text("2")
+    with replacing_folder(out, overwrite=True) as folder:
+        (folder / "c").write_text("3")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dataset", "empty"]
+    assert [p.name for p in out.iterdir()] == ["c"] and [p.name for p in out_b.iterdir()] == ["b"]
+
+
+def test_replacing_clears_what_a_dead_run_left_in_the_output_folder(tmp_path, capsys):
+    dead = dead_pid()
+    (tmp_path / f".r.md.partial-{dead}").write_text("half")
+    with replacing(tmp_path / "r.md") as temporary:
+        temporary.write_text("new")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.md"] and "interrupted run" in capsys.readouterr().err
