@@ -60,7 +60,8 @@ MODULES = {
     "streaming_engine": Module("inference/engine/streaming_engine.py", ("tests/test_streaming_edges.py", "tests/test_streaming.py"),
                                ("-k", "not official_offline")),
     "tactile_layout": Module("devices/tactile_layout.py", ("tests/test_tactile_layout_edges.py", "tests/test_tactile_layout.py")),
-    "output_safety": Module("devices/output_safety.py", ("tests/test_output_safety.py",)),
+    "output_safety": Module("devices/output_safety.py", ("tests/test_output_safety_edges.py", "tests/test_output_safety.py"),
+                            ("-k", "edges or replacing or check_output_cases")),  # not the commands run end to end
 }
 """The modules under test, in priority order, each with the narrowest tests that cover it (each mutant runs them)."""
 
