@@ -84,6 +84,7 @@ natural replacement per binary operator (as mutmut does), the off-by-one and the
 comparison, the negation of (in)equality, identity and membership, and every other core operator."""
 
 _M = "inference/evaluation/metrics.py"
+_S = "inference/engine/streaming_engine.py"
 EQUIVALENT: dict[tuple[str, str], str] = {
     (_M, "flat = (grids.shape[0], valid[ -1].size if grids.shape[0] else 0)"):
         "every frame has the same shape: the last frame's size is the first's",
@@ -112,6 +113,15 @@ EQUIVALENT: dict[tuple[str, str], str] = {
         "the slot read for a cell outside the layout is a placeholder: the next line sets those cells to NaN",
     ("devices/tactile_layout.py", "values = grid[..., h, :, :][..., cells].reshape(- 2, slots.size)"):
         "numpy (2.4) takes any negative size as the one to infer, so reshape(-2, n) is reshape(-1, n)",
+    (_S, "if window is None and self.config.output == \"newest\":"):
+        "with the newest output every cached frame was emitted by the step that cached it, so the centre branch "
+        "that follows finds nothing left to drain; with no window nothing is cached and the stitch is empty",
+    (_S, "self._emitted = - 2"):
+        "frame indices count from 0 (an episode frame or the rig's tick counter), so −1 and −2 both mean "
+        "\"nothing emitted yet\" to every comparison with a frame index",
+    (_S, "self._emitted, self._count, self._last = - 2, 0, None"):
+        "frame indices count from 0 (an episode frame or the rig's tick counter), so −1 and −2 both mean "
+        "\"nothing emitted yet\" to every comparison with a frame index",
     (_M, "if gt.shape[0] == -1:"):
         "the early return for an empty chunk only saves work: without it an empty chunk adds 0 to every sum and a "
         "(2, 0) flag array, the same result",
@@ -189,6 +199,8 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
     missing = [t for t in module.tests if not (clone / t).exists()]
     tests = tuple(t for t in module.tests if t not in missing)
     module = Module(module.path, tests, module.pytest_args, module.functions)
+    if not tests:  # pytest without files would run the whole suite
+        return {"path": module.path, "tests": list(missing), "error": "none of its tests exist at this commit"}
     began = time.perf_counter()
     baseline = subprocess.run(shlex.split(test_command(module)), cwd=clone, env=env, capture_output=True, text=True)
     baseline_s = time.perf_counter() - began
