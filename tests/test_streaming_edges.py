@@ -1,7 +1,8 @@
 """The streaming engine's bookkeeping by value (found by mutation testing, docs/testing.md): latency from the
 injected clock, stage timings in milliseconds, when a window counts as exact, what `drain()` returns per output
-position, `reset()` and a seek (the every-k-th count restarts), the status line per hand, and the joint ids the head
-gets."""
+position, `reset()` and a seek (the every-k-th count restarts), the status line per hand, the joint ids the head
+gets, a frame without an ego view, a pose-only model, a centre frame repeated by a drop, and stitching around a frame
+without hands."""
 from __future__ import annotations
 
 import dataclasses
@@ -136,3 +137,40 @@ def test_the_head_gets_the_official_joint_ids_of_the_hands_it_predicts(model):
     engine.runtime.head = recording
     run(engine, stream(model, 3, valid=valid))
     assert calls == [list(range(42)), list(range(21, 42)), list(range(21))]  # 0–20 left, 21–41 right
+
+
+def test_a_frame_without_an_ego_view_says_so_in_every_field(model):
+    snapshot = stream(model, 1)[0]
+    (prediction,) = StreamingEngine(model, EngineConfig()).step(dataclasses.replace(snapshot, images={}))
+    assert (prediction.pressure, prediction.hands_predicted, prediction.window_exact, prediction.views_used) == (
+        None, (False, False), False, ())
+
+
+def test_a_pose_only_model_sees_black_frames_whatever_the_cameras_show(model):
+    blank = TouchAnything(dataclasses.replace(model.config, blank_images=True)).eval()
+    blank.load_state_dict(model.state_dict())
+    snapshots = stream(model, 3, seed=8)
+    black = [dataclasses.replace(s, images={v: np.zeros_like(i) for v, i in s.images.items()}) for s in snapshots]
+    got = run(StreamingEngine(blank, EngineConfig()), snapshots)
+    want = run(StreamingEngine(model, EngineConfig()), black)
+    assert all(np.allclose(got[i].pressure, want[i].pressure, atol=1e-6, equal_nan=True) for i in range(3))
+
+
+def test_the_centre_output_emits_each_frame_once_when_a_drop_repeats_the_centre_frame(model):
+    snapshots = [s for s in stream(model, 24, seed=9) if s.frame_index != 15]
+    engine = StreamingEngine(model, EngineConfig(output="centre"))
+    emitted = [p.frame_index for s in snapshots for p in engine.step(s)] + [p.frame_index for p in engine.drain()]
+    assert emitted == sorted(set(emitted))  # at 21 the centre is 14 again (15 missing, 14 and 16 tie): not re-emitted
+    assert 15 not in emitted and emitted[:3] == [0, 1, 2]
+
+
+def test_stitching_a_frame_without_hands_leaves_the_other_frames_as_they_were(model):
+    valid = np.ones((26, 2), bool)
+    valid[10] = False  # frame 10: no hand; it shares 7 windows with frame 12
+    valid[:, 1] = False  # the right hand never has a pose
+    snapshots = stream(model, 26, seed=10, valid=valid)
+    every = stream(model, 26, seed=10, valid=np.column_stack([np.ones(26, bool), np.zeros(26, bool)]))
+    got, want = (run(StreamingEngine(model, EngineConfig(output="stitched")), s) for s in (snapshots, every))
+    assert sorted(got) == sorted(want) == list(range(12))
+    assert got[10].hands_predicted == (False, False) and got[0].hands_predicted == (True, False)  # 0: in one window only
+    assert all(np.allclose(got[i].pressure, want[i].pressure, atol=1e-6, equal_nan=True) for i in range(12) if i != 10)
