@@ -116,6 +116,8 @@ EQUIVALENT: dict[tuple[str, str], str] = {
     (_S, "if window is None and self.config.output == \"newest\":"):
         "with the newest output every cached frame was emitted by the step that cached it, so the centre branch "
         "that follows finds nothing left to drain; with no window nothing is cached and the stitch is empty",
+    (_S, 'status = "ok" if not missing else ("no valid hand pose" if len(missing) == 2 else f"{missing[ -1]} hand: no pose")'):
+        "that branch is taken when exactly one hand is missing: its first name is its last",
     (_S, "self._emitted = - 2"):
         "frame indices count from 0 (an episode frame or the rig's tick counter), so −1 and −2 both mean "
         "\"nothing emitted yet\" to every comparison with a frame index",
@@ -334,6 +336,14 @@ def report(results: dict, before: dict | None = None) -> str:
         if "error" in row:
             continue
         lines += ["", f"## {name}: {row['survived']} survivor{'s' if row['survived'] != 1 else ''}", ""]
+        old = before.get(name, {})
+        added = [t for t in row["tests"] if t in old.get("missing_tests", []) or t in old.get("tests", []) and "error" in old]
+        if old:
+            state = (f"no narrow test existed ({old['error']})" if "error" in old else
+                     f"{old['killed'] + old['timeouts']} of {old['mutants']} killed, "
+                     f"{old['survived'] - old['equivalent']} survivors not equivalent")
+            lines += [f"Before ({old.get('commit', '?')}): {state}. Tests added: "
+                      f"{', '.join(f'`{t}`' for t in added) or 'none'}.", ""]
         if row.get("history"):
             lines += [row["history"], ""]
         if not row["survivors"]:
