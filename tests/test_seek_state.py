@@ -5,6 +5,8 @@ point (an independent run, not the same state). A frame index that does not incr
 (`EngineSession._restart`)."""
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 import torch
@@ -105,3 +107,25 @@ def test_the_replay_session_resets_the_engine_on_a_forward_seek(paused_session, 
     assert sorted(expected) == [12, 13, 14, 15]
     for frame in range(12, 16):
         np.testing.assert_allclose(shown[frame], expected[frame], rtol=0, atol=1e-6, err_msg=f"frame {frame}")
+
+
+def test_a_frame_taken_before_a_seek_never_counts_in_the_new_figures(paused_session, episode_dir):  # noqa: F811
+    """The source thread may deliver a frame it took before a seek after the figures restarted (a dashboard test
+    under load counted 2 metric frames after a paused seek where 1 was right). The session drops it: with the
+    seek done in its two halves, frame 9 handed over between them never shows, never reaches the engine and
+    never counts; the sought frame 20 then counts as the first frame."""
+    session = paused_session
+    for frame in range(5):
+        step_to(session, frame)
+    with open_episode(episode_dir) as episode:
+        late = next(iter(ReplaySource(episode, ReplayConfig(speed=None, start_frame=9))))
+    session.restart(sought=20)  # what ReplaySession.seek(20) does before moving the source
+    session.submit(late)
+    time.sleep(1.0)  # the engine predicts a pico frame in well under a second: time for frame 9 to show if kept
+    state = session.state()
+    assert state.prediction is None and state.metric_frames == 0 and state.snapshot.frame_index == 4
+    session.source.seek(20)
+    wait_for(lambda: (p := session.state().prediction) is not None and p.frame_index == 20, "the sought frame")
+    assert session.state().metric_frames == 1
+    step_to(session, 21)
+    assert session.state().metric_frames == 2

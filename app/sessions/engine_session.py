@@ -67,6 +67,9 @@ class EngineSession:
         self._truth_seen = False
         self._lock = threading.Lock()
         self._recent: dict[int, tuple[Snapshot, np.ndarray | None]] = {}
+        self._sought: int | None = None
+        """After a seek, the frame the source was moved to: a snapshot the source took before the seek (another
+        frame, delivered late) is dropped until that frame comes, so that it never counts in the new metrics."""
         self._snapshot: Snapshot | None = None
         self._prediction: tuple[Prediction | None, np.ndarray | None, FrameFacts] | None = None
         """What the maps show: the newest prediction (None after a restart, until the engine predicts again), the
@@ -116,7 +119,12 @@ class EngineSession:
 
     def submit(self, snapshot: Snapshot, predict: bool = True) -> None:
         """Source thread: show the snapshot and hand it (with only the views switched on) to the engine;
-        `predict` False: the engine skips it (counted as dropped)."""
+        `predict` False: the engine skips it (counted as dropped). After a seek, snapshots of other frames than
+        the sought one are dropped until it comes."""
+        with self._lock:
+            if self._sought is not None and snapshot.frame_index != self._sought:
+                return
+            self._sought = None
         truth = self.truth_of(snapshot)
         with self._lock:
             self._snapshot = snapshot
@@ -165,16 +173,18 @@ class EngineSession:
         return frame_facts(prediction.pressure, prediction.hands_predicted, truth, self.bend, self.threshold,
                            self.metrics if self._truth_seen else None)
 
-    def restart(self) -> None:
-        """Start the figures afresh (after a seek, at an episode's start): see the module."""
-        self._restart(setting=False)
+    def restart(self, sought: int | None = None) -> None:
+        """Start the figures afresh (at an episode's start; before a seek to frame `sought`, whose snapshot is
+        the next one taken): see the module."""
+        self._restart(setting=False, sought=sought)
 
-    def _restart(self, setting: bool, change: Callable[[], None] = lambda: None) -> None:
+    def _restart(self, setting: bool, change: Callable[[], None] = lambda: None, sought: int | None = None) -> None:
         """Apply `change` (to the setting) and restart the figures in one step under the lock, so that no state
         shows the one without the other; `setting`: also forget the step and stage times. The engine's window
         is reset before its next step."""
         with self._lock:
             change()
+            self._sought = sought
             shown = self._recent.get(self._snapshot.frame_index) if self._snapshot is not None else None
             truth = shown[1] if shown is not None and shown[0] is self._snapshot else None
             self._recent.clear()

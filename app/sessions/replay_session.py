@@ -107,9 +107,11 @@ class ReplaySession(EngineSession):
         self.source.step()
 
     def seek(self, frame: int) -> None:
-        """Jump to `frame`; the engine's window and the metrics start afresh there."""
-        self.restart()
-        self.source.seek(frame)
+        """Jump to `frame`; the engine's window and the metrics start afresh there (a frame the source took
+        before the seek is not counted)."""
+        target = self.source.seek_target(frame)
+        self.restart(sought=target)
+        self.source.seek(target)
 
     def set_speed(self, speed: float) -> None:
         self.source.set_speed(speed)

@@ -92,12 +92,16 @@ class ReplaySource:
     def paused(self) -> bool:
         return self._paused
 
+    def seek_target(self, frame: int) -> int:
+        """The frame a seek to `frame` continues from: `frame` clamped to the episode."""
+        return int(np.clip(frame, 0, max(self.episode.num_frames - 1, 0)))
+
     def seek(self, frame: int) -> None:
-        """Continue from `frame` (clamped to the episode); the pacing schedule restarts there. While paused,
-        `frame` itself is released (a player shows the frame it was moved to), and only it: steps asked for
-        before the seek are dropped."""
+        """Continue from `seek_target(frame)`; the pacing schedule restarts there. While paused, that frame
+        itself is released (a player shows the frame it was moved to), and only it: steps asked for before the
+        seek are dropped."""
         with self._lock:
-            self._next = int(np.clip(frame, 0, max(self.episode.num_frames - 1, 0)))
+            self._next = self.seek_target(frame)
             self._due = None
             if self._paused:
                 self._steps = 1
