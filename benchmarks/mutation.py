@@ -118,6 +118,9 @@ EQUIVALENT: dict[tuple[str, str], str] = {
         "that follows finds nothing left to drain; with no window nothing is cached and the stitch is empty",
     (_S, 'status = "ok" if not missing else ("no valid hand pose" if len(missing) == 2 else f"{missing[ -1]} hand: no pose")'):
         "that branch is taken when exactly one hand is missing: its first name is its last",
+    (_S, "prediction = Prediction(frame_index=frame.frame_index, t_us=frame.t_us, pressure=pressure - self.mask,"):
+        "the mask is 0 inside the layout and NaN outside, so subtracting it gives what adding it gives (the pressures "
+        "are ≥ 0: no −0)",
     (_S, "self._emitted = - 2"):
         "frame indices count from 0 (an episode frame or the rig's tick counter), so −1 and −2 both mean "
         "\"nothing emitted yet\" to every comparison with a frame index",
