@@ -118,6 +118,8 @@ EQUIVALENT: dict[tuple[str, str], str] = {
         "that follows finds nothing left to drain; with no window nothing is cached and the stitch is empty",
     (_S, 'status = "ok" if not missing else ("no valid hand pose" if len(missing) == 2 else f"{missing[ -1]} hand: no pose")'):
         "that branch is taken when exactly one hand is missing: its first name is its last",
+    ("inference/evaluation/evaluation.py", "has = ~np.all(np.isnan(prediction.reshape(len(prediction), - 2)), axis=1)"):
+        "numpy (2.4) takes any negative size as the one to infer, so reshape(n, -2) is reshape(n, -1)",
     (_S, "prediction = Prediction(frame_index=frame.frame_index, t_us=frame.t_us, pressure=pressure - self.mask,"):
         "the mask is 0 inside the layout and NaN outside, so subtracting it gives what adding it gives (the pressures "
         "are ≥ 0: no −0)",
