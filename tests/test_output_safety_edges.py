@@ -1,10 +1,12 @@
 """The output rule's helpers at their edges, by value (found by mutation testing, docs/testing.md): whole folders
-and report folders, names at the file system's length limit, what a dead process left behind, the OS's reason in
-one line, and a sync that fails after the rename."""
+and report folders, names at the file system's length limit (the nearest existing folder's, 255 when the OS does not
+say, every part of a relative path), what a dead process left behind (another user's process counts as running),
+the OS's reason in one line, what is synced and how it is opened, and a sync that fails after the rename."""
 from __future__ import annotations
 
 import errno
 import os
+import stat
 import subprocess
 import sys
 from pathlib import Path
@@ -188,3 +190,106 @@ def test_replacing_clears_what_a_dead_run_left_in_the_output_folder(tmp_path, ca
     with replacing(tmp_path / "r.md") as temporary:
         temporary.write_text("new")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.md"] and "interrupted run" in capsys.readouterr().err
+
+
+def fake_pathconf(small: Path, limit: int = 100):
+    """os.pathconf as on a file system whose folder `small` allows names of `limit` bytes (others 255)."""
+    def pathconf(path, name):
+        assert name == "PC_NAME_MAX"
+        if not Path(path).exists():
+            raise FileNotFoundError(errno.ENOENT, "No such file or directory", str(path))
+        return limit if Path(path) == small else 255
+    return pathconf
+
+
+def test_the_limit_is_the_one_of_the_nearest_existing_folder(tmp_path, monkeypatch):
+    small = tmp_path / "small"
+    small.mkdir()
+    monkeypatch.setattr(output_safety.os, "pathconf", fake_pathconf(small))
+    for out in (small / ("a" * 101), small / "new" / ("a" * 101), small / "new" / ("a" * 101) / "x"):
+        with pytest.raises(UserError, match=r"bytes, longer than the file system allows \(100\)"):
+            check_name_lengths(out)
+    check_name_lengths(tmp_path / ("a" * 101))
+
+
+def test_without_a_limit_from_the_os_names_may_have_255_bytes(tmp_path, monkeypatch):
+    def unknown(path, name):
+        raise OSError(errno.EINVAL, "Invalid argument")
+
+    monkeypatch.setattr(output_safety.os, "pathconf", unknown)
+    extra = len(f".{PARTIAL}{os.getpid()}")
+    check_name_lengths(tmp_path / ("a" * (255 - extra)))
+    with pytest.raises(UserError, match=r"\(255\)"):
+        check_name_lengths(tmp_path / ("a" * (256 - extra)))
+
+
+def test_every_part_of_a_relative_path_is_checked(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(UserError, match="the name aaaaaaaaaaaaaaaaaaaaaaaa… is 300 bytes"):
+        check_name_lengths(Path("new") / ("a" * 300) / "x")
+
+
+def test_sync_fsyncs_a_file_or_everything_under_a_folder(tmp_path, monkeypatch):
+    synced = []
+    monkeypatch.setattr(output_safety, "fsync_path", lambda path, directory=False: synced.append((path, directory)))
+    (tmp_path / "d" / "e").mkdir(parents=True)
+    (tmp_path / "d" / "f").write_text("")
+    (tmp_path / "d" / "e" / "g").write_text("")
+    output_safety.sync(tmp_path / "d" / "f")
+    assert synced == [(tmp_path / "d" / "f", False)]
+    synced.clear()
+    output_safety.sync(tmp_path / "d")
+    assert sorted(synced) == sorted([(tmp_path / "d" / "f", False), (tmp_path / "d", True), (tmp_path / "d" / "e" / "g", False),
+                                     (tmp_path / "d" / "e", True)])
+
+
+def test_a_folder_output_is_probed_inside_it(tmp_path, monkeypatch):
+    probed = []
+    mkstemp = output_safety.tempfile.mkstemp
+    monkeypatch.setattr(output_safety.tempfile, "mkstemp", lambda **kw: probed.append(kw["dir"]) or mkstemp(**kw))
+    out = tmp_path / "out"
+    out.mkdir()
+    check_output(out, [], folder=True)
+    check_output(out, [], whole=True)
+    check_output(out / "r.md", [])
+    assert probed == [out, out, out]
+
+
+def test_a_failed_file_sync_is_reported_even_when_the_folder_syncs(tmp_path, monkeypatch):
+    fsync = os.fsync
+
+    def files_fail(fd):
+        if stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(errno.EIO, "I/O error")
+        fsync(fd)
+
+    monkeypatch.setattr(output_safety.os, "fsync", files_fail)
+    with pytest.raises(UserError, match="not confirmed on the disk"):
+        write_text(tmp_path / "r.md", "complete")
+    assert (tmp_path / "r.md").read_text() == "complete"
+
+
+def test_another_users_process_counts_as_running(tmp_path, monkeypatch):
+    def not_permitted(pid, sig):
+        raise PermissionError(errno.EPERM, "Operation not permitted")
+
+    monkeypatch.setattr(output_safety.os, "kill", not_permitted)
+    (tmp_path / ".a.partial-4242").write_text("")
+    assert remove_left_behind(tmp_path) == [] and (tmp_path / ".a.partial-4242").exists()
+
+
+def test_a_file_is_opened_read_only_to_be_synced(tmp_path, monkeypatch):
+    flags = []
+    real_open = os.open
+    monkeypatch.setattr(output_safety.os, "open", lambda path, flag: flags.append(flag) or real_open(path, flag))
+    (tmp_path / "f").write_text("")
+    fsync_path(tmp_path / "f")
+    fsync_path(tmp_path, directory=True)
+    assert flags == [os.O_RDONLY, os.O_RDONLY | os.O_DIRECTORY]
+
+
+def test_a_folder_output_may_go_into_folders_that_do_not_exist_yet(tmp_path):
+    out = tmp_path / "a" / "b" / "dataset"
+    with replacing_folder(out) as folder:
+        (folder / "x").write_text("1")
+    assert (out / "x").read_text() == "1" and sorted(p.name for p in out.parent.iterdir()) == ["dataset"]
