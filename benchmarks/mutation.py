@@ -269,7 +269,8 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
         counts["mutants"] += earlier["mutants"] - len(retest)
         for key in ("killed", "timeouts", "incompetent"):
             counts[key] += earlier[key]
-        extra = {"survivors_retested_from": earlier["commit"], "earlier_seconds": earlier["seconds"]}
+        extra = {"survivors_retested_from": earlier["commit"], "earlier_seconds": earlier["seconds"],
+                 "earlier": {key: earlier[key] for key in ("commit", "tests", "killed", "timeouts", "survived")}}
     return classify({**extra, "path": module.path, "tests": list(tests), "pytest_args": list(module.pytest_args),
             "missing_tests": missing, "baseline": baseline.stdout.strip().splitlines()[-1].strip("= "),
             "baseline_s": round(baseline_s, 1), "timeout_s": timeout,
@@ -349,6 +350,11 @@ def report(results: dict, before: dict | None = None) -> str:
                      f"{old['survived'] - old['equivalent']} survivors not equivalent")
             lines += [f"Before ({old.get('commit', '?')}): {state}. Tests added: "
                       f"{', '.join(f'`{t}`' for t in added) or 'none'}.", ""]
+        if "earlier" in row:
+            first = row["earlier"]
+            lines += [f"First run ({first['commit']}, tests {', '.join(f'`{t}`' for t in first['tests'])} as they were then): "
+                      f"{first['killed'] + first['timeouts']} of {row['mutants']} killed, {first['survived']} survived; "
+                      "its survivors ran again against the tests added since.", ""]
         if row.get("history"):
             lines += [row["history"], ""]
         if not row["survivors"]:
