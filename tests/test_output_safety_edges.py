@@ -293,3 +293,9 @@ def test_a_folder_output_may_go_into_folders_that_do_not_exist_yet(tmp_path):
     with replacing_folder(out) as folder:
         (folder / "x").write_text("1")
     assert (out / "x").read_text() == "1" and sorted(p.name for p in out.parent.iterdir()) == ["dataset"]
+
+
+def test_the_first_part_of_an_absolute_path_is_checked(monkeypatch):
+    monkeypatch.setattr(output_safety.os, "pathconf", fake_pathconf(Path("/")))
+    with pytest.raises(UserError, match=r"the name aaaaaaaaaaaaaaaaaaaaaaaa… is 150 bytes, longer than the file system allows \(100\)"):
+        check_name_lengths(Path("/" + "a" * 150) / "x")
