@@ -8,20 +8,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from touchanything.devices.tactile_layout import TactileLayout
+from test_frame_facts import LAYOUT, pressed
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.frame_facts import FrameFacts, HandFacts, frame_facts, hand_contact
-
-LAYOUT = TactileLayout.default()
-TACTILE = LAYOUT.valid & ~LAYOUT.bend
-
-
-def pressed(cells_per_hand: tuple[int, int], value: float = 0.5) -> np.ndarray:
-    grids = np.where(LAYOUT.valid, 0.0, np.nan)
-    for h, n in enumerate(cells_per_hand):
-        rows, cols = np.nonzero(TACTILE[h])
-        grids[h, rows[:n], cols[:n]] = value
-    return grids
 
 
 def test_hand_contact_judges_each_hand_on_its_own_cells():
