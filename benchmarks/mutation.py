@@ -120,6 +120,13 @@ EQUIVALENT: dict[tuple[str, str], str] = {
         "that branch is taken when exactly one hand is missing: its first name is its last",
     ("inference/evaluation/evaluation.py", "has = ~np.all(np.isnan(prediction.reshape(len(prediction), - 2)), axis=1)"):
         "numpy (2.4) takes any negative size as the one to infer, so reshape(n, -2) is reshape(n, -1)",
+    ("devices/output_safety.py", "names = [*Path(out).parts[ 0 if Path(out).is_absolute() else 0:], temporary_path(out).name]"):
+        "the extra part is the root \"/\", one byte: never the name over the limit",
+    ("devices/output_safety.py", "path.unlink(missing_ok=False)"):
+        "`_remove` runs under contextlib.suppress(OSError): a missing file is ignored either way",
+    ("devices/output_safety.py", "os.kill(pid, -1)"):
+        "−1 is not a signal: the kernel answers ESRCH (ProcessLookupError: not running) for a process that has ended "
+        "and EINVAL (another OSError: running) for one that runs, the answers signal 0 gives",
     (_S, "prediction = Prediction(frame_index=frame.frame_index, t_us=frame.t_us, pressure=pressure - self.mask,"):
         "the mask is 0 inside the layout and NaN outside, so subtracting it gives what adding it gives (the pressures "
         "are ≥ 0: no −0)",

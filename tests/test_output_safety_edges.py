@@ -1,7 +1,8 @@
 """The output rule's helpers at their edges, by value (found by mutation testing, docs/testing.md): whole folders
 and report folders, names at the file system's length limit (the nearest existing folder's, 255 when the OS does not
-say, every part of a relative path), what a dead process left behind (another user's process counts as running),
-the OS's reason in one line, what is synced and how it is opened, and a sync that fails after the rename."""
+say, every part of a path), what a dead process left behind (a running one is not signalled; another user's counts
+as running), `named`, an unwritable folder, the OS's reason in one line, what is synced and how it is opened, and a
+sync that fails after the rename."""
 from __future__ import annotations
 
 import errno
@@ -131,14 +132,20 @@ def test_the_temporary_name_is_hidden_beside_the_output(tmp_path):
 
 def test_only_what_dead_processes_left_is_removed(tmp_path, capsys):
     dead = dead_pid()
+    running = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     gone = [tmp_path / f".a.hdf5.partial-{dead}", tmp_path / f".data.old-{dead}"]
     gone[0].write_text("half")
     (gone[1] / "sub").mkdir(parents=True)
-    kept = [tmp_path / f".b.partial-{os.getpid()}", tmp_path / f".c.partial-{os.getppid()}", tmp_path / f"d.partial-{dead}",
+    kept = [tmp_path / f".b.partial-{os.getpid()}", tmp_path / f".c.partial-{running.pid}", tmp_path / f"d.partial-{dead}",
             tmp_path / f".e.partial-{dead}x", tmp_path / f".partial-{dead}"]
     for path in kept:
         path.write_text("")
-    assert sorted(remove_left_behind(tmp_path)) == sorted(gone)
+    try:
+        assert sorted(remove_left_behind(tmp_path)) == sorted(gone)
+        assert running.poll() is None  # asked whether it runs (signal 0), not signalled
+    finally:
+        running.kill()
+        running.wait()
     assert sorted(tmp_path.iterdir()) == sorted(kept)
     err = capsys.readouterr().err.splitlines()
     assert sorted(err) == sorted(f"removed {p}: left half-written by an interrupted run (process {dead})" for p in gone)
@@ -212,9 +219,10 @@ def test_the_limit_is_the_one_of_the_nearest_existing_folder(tmp_path, monkeypat
     check_name_lengths(tmp_path / ("a" * 101))
 
 
-def test_without_a_limit_from_the_os_names_may_have_255_bytes(tmp_path, monkeypatch):
+@pytest.mark.parametrize("error", [OSError(errno.EINVAL, "Invalid argument"), ValueError("unrecognized configuration name")])
+def test_without_a_limit_from_the_os_names_may_have_255_bytes(tmp_path, monkeypatch, error):
     def unknown(path, name):
-        raise OSError(errno.EINVAL, "Invalid argument")
+        raise error
 
     monkeypatch.setattr(output_safety.os, "pathconf", unknown)
     extra = len(f".{PARTIAL}{os.getpid()}")
@@ -299,3 +307,37 @@ def test_the_first_part_of_an_absolute_path_is_checked(monkeypatch):
     monkeypatch.setattr(output_safety.os, "pathconf", fake_pathconf(Path("/")))
     with pytest.raises(UserError, match=r"the name aaaaaaaaaaaaaaaaaaaaaaaa… is 150 bytes, longer than the file system allows \(100\)"):
         check_name_lengths(Path("/" + "a" * 150) / "x")
+
+
+def test_the_first_part_of_a_relative_path_is_checked(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(output_safety.os, "pathconf", fake_pathconf(Path(".")))
+    with pytest.raises(UserError, match=r"the name aaaaaaaaaaaaaaaaaaaaaaaa… is 150 bytes, longer than the file system allows \(100\)"):
+        check_name_lengths(Path("a" * 150) / "x")
+
+
+def test_named_owns_only_files_of_its_names(tmp_path):
+    (tmp_path / "summary.md").write_text("")
+    (tmp_path / "other.md").write_text("")
+    (tmp_path / "rows.json").mkdir()
+    own = output_safety.named("summary.md", "rows.json")
+    assert [own(tmp_path / n) for n in ("summary.md", "other.md", "rows.json", "absent.md")] == [True, False, False, False]
+
+
+def test_a_folder_that_refuses_new_files_is_not_writable(tmp_path, monkeypatch):
+    def refused(**kw):
+        raise PermissionError(errno.EACCES, "Permission denied")
+
+    monkeypatch.setattr(output_safety.tempfile, "mkstemp", refused)
+    with pytest.raises(UserError, match=r"not writable \(Permission denied\)"):
+        check_writable(tmp_path)
+
+
+def test_write_text_makes_the_folders_and_syncs_the_file_then_its_folder(tmp_path, monkeypatch):
+    opened = []
+    real_open = os.open
+    monkeypatch.setattr(output_safety.os, "open", lambda path, flag: opened.append((Path(path), flag)) or real_open(path, flag))
+    out = tmp_path / "a" / "b" / "r.md"
+    write_text(out, "x")
+    assert out.read_text() == "x"
+    assert opened == [(temporary_path(out), os.O_RDONLY), (out.parent, os.O_RDONLY | os.O_DIRECTORY)]
