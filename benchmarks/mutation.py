@@ -276,8 +276,9 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
         counts["mutants"] += earlier["mutants"] - len(retest)
         for key in ("killed", "timeouts", "incompetent"):
             counts[key] += earlier[key]
-        extra = {"survivors_retested_from": earlier["commit"], "earlier_seconds": earlier["seconds"],
-                 "earlier": {key: earlier[key] for key in ("commit", "tests", "killed", "timeouts", "survived")}}
+        first = earlier.get("earlier") or {key: earlier[key] for key in ("commit", "tests", "killed", "timeouts", "survived")}
+        extra = {"survivors_retested_from": first["commit"], "earlier": first,  # the first full run, and all runs' time
+                 "earlier_seconds": earlier.get("earlier_seconds", 0) + earlier["seconds"]}
     return classify({**extra, "path": module.path, "tests": list(tests), "pytest_args": list(module.pytest_args),
             "missing_tests": missing, "baseline": baseline.stdout.strip().splitlines()[-1].strip("= "),
             "baseline_s": round(baseline_s, 1), "timeout_s": timeout,
@@ -307,7 +308,7 @@ def dump(cr: Path, session: Path, clone: Path) -> list[tuple[dict, dict | None]]
 def minutes(row: dict) -> str:
     if "survivors_retested_from" not in row:
         return f"{row['seconds'] / 60:.1f} min"
-    return (f"{row['earlier_seconds'] / 60:.1f} min ({row['survivors_retested_from']}), then its survivors again: "
+    return (f"{row['earlier_seconds'] / 60:.1f} min (from {row['survivors_retested_from']}), then the survivors again: "
             f"{row['seconds'] / 60:.1f} min")
 
 
