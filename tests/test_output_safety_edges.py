@@ -132,7 +132,10 @@ def test_the_temporary_name_is_hidden_beside_the_output(tmp_path):
 
 def test_only_what_dead_processes_left_is_removed(tmp_path, capsys):
     dead = dead_pid()
-    running = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    running = subprocess.Popen([sys.executable, "-c", "import signal, time\n"  # whatever signals its parent ignores (nohup)
+                                "for s in (signal.SIGHUP, signal.SIGINT, signal.SIGTERM): signal.signal(s, signal.SIG_DFL)\n"
+                                "print('ready', flush=True)\ntime.sleep(60)"], stdout=subprocess.PIPE, text=True)
+    assert running.stdout.readline() == "ready\n"
     gone = [tmp_path / f".a.hdf5.partial-{dead}", tmp_path / f".data.old-{dead}"]
     gone[0].write_text("half")
     (gone[1] / "sub").mkdir(parents=True)
@@ -142,10 +145,11 @@ def test_only_what_dead_processes_left_is_removed(tmp_path, capsys):
         path.write_text("")
     try:
         assert sorted(remove_left_behind(tmp_path)) == sorted(gone)
-        assert running.poll() is None  # asked whether it runs (signal 0), not signalled
+        with pytest.raises(subprocess.TimeoutExpired):  # asked whether it runs (signal 0), not signalled
+            running.wait(timeout=0.5)
     finally:
         running.kill()
-        running.wait()
+        running.communicate()
     assert sorted(tmp_path.iterdir()) == sorted(kept)
     err = capsys.readouterr().err.splitlines()
     assert sorted(err) == sorted(f"removed {p}: left half-written by an interrupted run (process {dead})" for p in gone)
