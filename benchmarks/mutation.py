@@ -278,7 +278,7 @@ def run_module(name: str, module: Module, clone: Path, venv: Path, scratch: Path
             counts[key] += earlier[key]
         first = earlier.get("earlier") or {key: earlier[key] for key in ("commit", "tests", "killed", "timeouts", "survived")}
         extra = {"survivors_retested_from": first["commit"], "earlier": first,  # the first full run, and all runs' time
-                 "earlier_seconds": earlier.get("earlier_seconds", 0) + earlier["seconds"]}
+                 "earlier_seconds": round(earlier.get("earlier_seconds", 0) + earlier["seconds"], 1)}
     return classify({**extra, "path": module.path, "tests": list(tests), "pytest_args": list(module.pytest_args),
             "missing_tests": missing, "baseline": baseline.stdout.strip().splitlines()[-1].strip("= "),
             "baseline_s": round(baseline_s, 1), "timeout_s": timeout,
