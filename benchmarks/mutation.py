@@ -315,7 +315,8 @@ def minutes(row: dict) -> str:
 def report(results: dict, before: dict | None = None) -> str:
     """The markdown summary; `before`: an earlier run's results (an earlier commit's tests) to show beside."""
     before = (before or {}).get("modules", {})
-    lines = ["# Mutation testing of the core modules", "",
+    title = "# Mutation testing of the core modules" + (" — before" if results.get("before_run") else "")
+    lines = [title, "",
              f"`nice -n 10 python benchmarks/mutation.py` ({results['tool']}, local distributor, one mutant at a "
              f"time; docs/testing.md), last run on {results['machine']}, {results['date']}: each module's mutants "
              "run against the narrow tests named below, on a clone of the commit in the table (never the working "
@@ -326,7 +327,8 @@ def report(results: dict, before: dict | None = None) -> str:
              "rewrite a dotted name such as `json.JSONDecodeError`), left out of the scores. Score = killed / mutants; "
              "the target is ≥ 90 % of the non-equivalent "
              "mutants killed in each module, each survivor either killed by a test or explained as equivalent. "
-             "\"Before\": the same mutants against the tests that existed before the mutation run "
+             "\"Before\": the same mutants against the same narrow selection as it was before the mutation run "
+             "(tests elsewhere in the suite may kill more: the commands run end to end, for the output rule) "
              f"({', '.join(sorted({row.get('commit', '?') for row in before.values()})) or 'not run'}; "
              "`--rev`, `mutation_before.json`).", "",
              "| module | commit | tests | mutants | killed | timeouts | survived | equivalent | not made | score | "
@@ -394,6 +396,7 @@ def main() -> int:
     before = json.loads(before_file.read_text()) if before_file.exists() and not args.out.name.endswith("_before") else None
     if args.report_only:
         results = json.loads(args.out.with_suffix(".json").read_text())
+        results["before_run"] = args.out.name.endswith("_before")
         for data, path in ((results, args.out.with_suffix(".json")), (before, before_file)):
             if data is not None:
                 data["modules"] = {name: row if "error" in row else classify(row) for name, row in data["modules"].items()}
@@ -408,7 +411,8 @@ def main() -> int:
     version = subprocess.run([str(args.venv / "bin" / "cosmic-ray"), "--version"], capture_output=True, text=True)
     commit = subprocess.run(["git", "rev-parse", "--short", args.rev], cwd=ROOT, capture_output=True, text=True,
                             check=True).stdout.strip()
-    results = {"tool": version.stdout.strip(), "machine": f"{platform.machine()}, {os.cpu_count()} cores",
+    results = {"before_run": args.out.name.endswith("_before"), "tool": version.stdout.strip(),
+               "machine": f"{platform.machine()}, {os.cpu_count()} cores",
                "date": time.strftime("%Y-%m-%d"), "commit": commit,
                "modules": {name: row for name, row in previous.get("modules", {}).items() if name in MODULES}}
     scratch = Path(tempfile.mkdtemp(prefix="mutation-"))
