@@ -133,34 +133,24 @@ def test_exporting_again_replaces_the_whole_folder(perturbed, perturbed_nano_exp
     assert "holds the input" in one_error_line(capsys) and perturbed.is_file()
 
 
-def test_the_user_cache_is_keyed_and_checked_by_the_weights(nano_export, perturbed, tmp_path, monkeypatch):
+def test_the_user_cache_is_keyed_by_the_weights_filled_once_and_a_running_engine_is_left_alone(
+        nano_export, perturbed, tmp_path, monkeypatch):
     """A cache folder of the model's digest that holds other graphs (here: nano's) is exported again, once: the
-    next engine of those weights runs the cached graphs."""
+    next engine of those weights runs the cached graphs. The export happens while another engine runs on its
+    thread, as on the dashboard's first switch to an ONNX tier: in this process torch's exporter traced that
+    engine's module calls too and broke its step; the export runs in a child process now, and the running
+    engine keeps predicting."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     model = load_model(perturbed)
     digest = reference_sha256(model)
     folder = onnx_cache_dir(digest)
     assert folder == tmp_path / "touchanything" / "onnx" / digest[:16]
     shutil.copytree(nano_export, folder)
-    StreamingEngine(model, EngineConfig(runtime="onnx", precision="int8"))
-    manifest = json.loads((folder / "engine.json").read_text())
-    assert manifest["weights_sha256"] == digest and set(manifest["files"]) == {"fp32", "int8"}
-    stamp = (folder / "engine.json").stat().st_mtime_ns
-    StreamingEngine(model, EngineConfig(runtime="onnx"))
-    assert (folder / "engine.json").stat().st_mtime_ns == stamp
-
-
-def test_exporting_into_the_cache_leaves_a_running_engine_alone(tmp_path, monkeypatch):
-    """The dashboard's first switch to an ONNX tier exports while the old engine runs on its thread. In this
-    process torch's exporter traced that engine's module calls too and broke its step; the export runs in a
-    child process now, and the running engine keeps predicting."""
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    model = load_model(NANO)
     rng = np.random.default_rng(0)
     images = {v: rng.integers(0, 256, (64, 64, 3), dtype=np.uint8) for v in VIEW_NAMES}
     joints = (rng.normal(0, 2, (42, 3)) + [0, 0, 40]).astype(np.float32)
     done = threading.Event()
-    with LiveEngine(StreamingEngine(model, EngineConfig())) as live:
+    with LiveEngine(StreamingEngine(load_model(NANO), EngineConfig())) as live:
         def feed() -> None:
             for i in itertools.count():
                 if done.wait(1 / 30):
@@ -177,6 +167,11 @@ def test_exporting_into_the_cache_leaves_a_running_engine_alone(tmp_path, monkey
             done.set()
             feeder.join()
     assert live.error is None and during >= 30
+    manifest = json.loads((folder / "engine.json").read_text())
+    assert manifest["weights_sha256"] == digest and set(manifest["files"]) == {"fp32", "int8"}
+    stamp = (folder / "engine.json").stat().st_mtime_ns
+    StreamingEngine(model, EngineConfig(runtime="onnx"))
+    assert (folder / "engine.json").stat().st_mtime_ns == stamp
 
 
 def test_a_failed_cache_export_is_one_line(tmp_path, monkeypatch):
