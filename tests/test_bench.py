@@ -256,6 +256,7 @@ def test_the_model_axis_targets_judge_faster_and_more_accurate_models_against_th
     assert checks["big: low end of its unseen V-IoU interval minus nano's unseen V-IoU"]["met"] is False
 
 
+@pytest.mark.slow
 def test_few_held_out_trajectories_are_a_warning_and_the_run_goes_on(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["bench", "--quick", "--frames", "15", "--models", str(REPO / "models" / "baseline_pose"), "--out", str(out)]) == 0
