@@ -194,14 +194,10 @@ processes (pytest-xdist), so that no other test's load can slow them."""
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Tests that use the X display carry the `display` marker (deselect them with `-m 'not display'`); those and
-    the tests of `SERIAL_MODULES` carry the `serial` marker. The modules holding a `slow` test run first (in the
-    order pytest-randomly shuffled them; it reorders before this hook): a minute-long test started last would
-    leave the other worker idle at the end of the parallel run."""
+    the tests of `SERIAL_MODULES` carry the `serial` marker."""
     for item in items:
         display = "x_display" in getattr(item, "fixturenames", ())
         if display:
             item.add_marker(pytest.mark.display)
         if display or item.module.__name__.rsplit(".", 1)[-1] in SERIAL_MODULES:
             item.add_marker(pytest.mark.serial)
-    slow_modules = {item.module.__name__ for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.module.__name__ not in slow_modules)
