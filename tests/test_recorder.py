@@ -137,11 +137,19 @@ def test_a_full_queue_drops_frames_and_write_never_blocks(tmp_path):
 
 def test_a_recording_is_behind_while_its_queue_is_over_a_quarter_full(tmp_path):
     recorder = Recorder(RecorderConfig(tmp_path / "ep", queue_frames=40))
+    snapshots = [synthetic_snapshot(k) for k in range(40)]
     recorder.start()
     behind = []
-    for k in range(40):  # queued in microseconds, encoded in milliseconds
-        recorder.write(synthetic_snapshot(k))
-        behind.append(recorder.is_behind)
+    # The 40 writes take microseconds, a frame's encoding milliseconds; a long GIL switch interval keeps a busy
+    # machine from handing the writer thread the interpreter between two writes (it then kept up in a CI run).
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1.0)
+    try:
+        for snapshot in snapshots:
+            recorder.write(snapshot)
+            behind.append(recorder.is_behind)
+    finally:
+        sys.setswitchinterval(interval)
     deadline = time.monotonic() + 30
     while recorder.counters.queued and time.monotonic() < deadline:
         time.sleep(0.01)
