@@ -1,7 +1,14 @@
 """Shared fixtures: real episode folders written through the project's writer, and the official files."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
+
+if "PYTEST_XDIST_WORKER_COUNT" in os.environ:
+    # A worker of `pytest -n N` shares the cores with N - 1 others: torch's (OpenMP) threads default to every core, and
+    # 2 workers × 2 spinning threads on 2 cores took 209 s where 1 thread each took 160 s (the heaviest modules). Set
+    # before torch is first imported; the CLI processes that tests start inherit it. The serial run keeps every core.
+    os.environ.setdefault("OMP_NUM_THREADS", str(max(1, (os.cpu_count() or 1) // int(os.environ["PYTEST_XDIST_WORKER_COUNT"]))))
 
 import numpy as np
 import pytest
@@ -146,7 +153,6 @@ def _free_display_number() -> int:
 @pytest.fixture(scope="session")
 def x_display():
     """An X display for the dashboard: $DISPLAY when it is reachable, else an Xvfb started here (1920×1080)."""
-    import os
     import shutil
     import subprocess
     import time
