@@ -49,10 +49,10 @@ class Module:
     """Only the mutants inside these functions / methods / classes (cosmic-ray's definition name); () all."""
 
 
-_LEROBOT_TESTS = ("tests/test_lerobot_features.py", "tests/test_lerobot.py")
+_LEROBOT_TESTS = ("tests/test_lerobot_writer_edges.py", "tests/test_lerobot_features.py", "tests/test_lerobot.py")
 _LEROBOT_K = ("-k", "not bundled_sample and not eval_and_replay")
-"""The LeRobot writer (with its statistics and format) and reader: the export and read-back tests, without the two
-that export the whole bundled sample and run eval and replay on it (25 s; they add the commands end to end)."""
+"""The LeRobot writer (with its format) and reader: the export and read-back tests, without the two that export the
+whole bundled sample and run eval and replay on it (25 s; they add the commands end to end)."""
 
 MODULES = {
     "metrics": Module("inference/evaluation/metrics.py", ("tests/test_metrics.py", "tests/test_metric_edges.py"),
@@ -70,7 +70,9 @@ MODULES = {
     "output_safety": Module("devices/output_safety.py", ("tests/test_output_safety_edges.py", "tests/test_output_safety.py"),
                             ("-k", "edges or replacing or check_output_cases")),  # not the commands run end to end
     **{name: Module(f"devices/episodes/{name}.py", _LEROBOT_TESTS, _LEROBOT_K)
-       for name in ("lerobot_writer", "lerobot_episode", "lerobot_stats", "lerobot_format")},
+       for name in ("lerobot_writer", "lerobot_episode", "lerobot_format")},
+    "lerobot_stats": Module("devices/episodes/lerobot_stats.py", ("tests/test_lerobot_features.py",),
+                            ("-k", "quantiles or statistics")),  # LeRobot's statistics, hand-worked and of an export
 }
 """The modules under test, in priority order, each with the narrowest tests that cover it (each mutant runs them)."""
 
