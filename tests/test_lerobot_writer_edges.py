@@ -16,7 +16,7 @@ from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.episodes.lerobot_export import export_lerobot
-from touchanything.devices.episodes.lerobot_writer import _OpenFile, frame_features
+from touchanything.devices.episodes.lerobot_writer import LeRobotWriter, _OpenFile, frame_features
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
 
@@ -98,6 +98,8 @@ def test_files_closed_after_every_episode_read_back_frame_by_frame(tmp_path, mon
     assert [row[f"videos/{key}/file_index"] for row in rows] == [0, 1, 2]
     assert [row[f"videos/{key}/from_timestamp"] for row in rows] == [0.0, 0.0, 0.0]
     assert [row[f"videos/{key}/to_timestamp"] for row in rows] == pytest.approx([7 / 30, 5 / 30, 6 / 30])
+    # the episodes metadata is one file: every row says it lies in chunk 0, file 0
+    assert {(row["meta/episodes/chunk_index"], row["meta/episodes/file_index"]) for row in rows} == {(0, 0)}
     info = json.loads((out / "meta" / "info.json").read_text())
     assert info["total_frames"] == 18 and info["total_episodes"] == 3
     for index, source in enumerate(sources):
@@ -124,3 +126,50 @@ def test_episodes_after_the_first_read_their_own_pictures_from_a_shared_video_fi
     with open_episode(first) as one, open_episode(second) as two, open_episode(out / "episode_000001") as back:
         pictures = [one.views["ego"].read(i) for i in range(7)] + [two.views["ego"].read(i) for i in range(5)]
         assert [_closest(back.views["ego"].read(i), pictures) for i in range(5)] == [7, 8, 9, 10, 11]
+
+
+class _FirstFrames:
+    """A FrameSource that gives only the first `count` frames of `source` (a file that no longer decodes the rest)."""
+
+    def __init__(self, source, count: int) -> None:
+        self.source, self.count = source, count
+        self.width, self.height, self.num_frames = source.width, source.height, source.num_frames
+
+    def read(self, index: int) -> np.ndarray | None:
+        return self.source.read(index) if index < self.count else None
+
+    def close(self) -> None:
+        self.source.close()
+
+
+def test_frames_a_video_no_longer_decodes_are_written_black_and_the_file_is_a_plain_mp4(tmp_path):
+    """The left wrist video decodes 3 of the episode's 6 frames: the export writes frames 3…5 black, so that frame i
+    stays at i / fps; LeRobot's video files are plain MP4 (one index, no fragments: its decoders seek by it); the
+    video features' info is what LeRobot writes for 3-channel H.264 without sound; tasks.parquet carries the pandas
+    index LeRobot reads task texts from."""
+    folder = write_episode(tmp_path / "raw" / "Home" / "pick_up_bottle" / "001", frames=6, seed=3)
+    out = tmp_path / "lerobot"
+    with open_episode(folder) as episode:
+        sizes = {view: (source.width, source.height) for view, source in episode.views.items()}
+        pictures = [episode.views["wrist_left"].read(i) for i in range(3)]
+        episode.views["wrist_left"] = _FirstFrames(episode.views["wrist_left"], 3)
+        writer = LeRobotWriter(out, 30, VIEW_NAMES, sizes, {"train": "0:1"}, SENSOR_CELLS)
+        writer.add(episode, "pick up bottle", {})
+        writer.close()
+    with open_episode(out / "episode_000000") as back:
+        assert back.num_frames == 6 and back.problems == []
+        assert [_closest(back.views["wrist_left"].read(i), pictures) for i in range(3)] == [0, 1, 2]
+        assert all(back.views["wrist_left"].read(i).mean() < 2 for i in range(3, 6))  # black (up to the codec)
+    video = (out / "videos" / fmt.VIEW_FEATURES["wrist_left"] / "chunk-000" / "file-000.mp4").read_bytes()
+    assert b"moov" in video and b"moof" not in video
+    info = json.loads((out / "meta" / "info.json").read_text())
+    assert info["features"][fmt.VIEW_FEATURES["ego"]]["info"] == {
+        "video.height": 48, "video.width": 64, "video.codec": "h264", "video.pix_fmt": "yuv420p",
+        "video.is_depth_map": False, "video.fps": 30, "video.channels": 3, "has_audio": False}
+    stats = json.loads((out / "meta" / "stats.json").read_text())
+    assert stats["observation.state"]["count"] == [6]
+    tasks = pq.read_table(out / "meta" / "tasks.parquet")
+    pandas = json.loads(tasks.schema.metadata[b"pandas"])
+    assert tasks["task"].to_pylist() == ["pick up bottle"] and pandas["index_columns"] == ["task"]
+    assert {c["name"]: (c["pandas_type"], c["numpy_type"]) for c in pandas["columns"]} == {
+        "task": ("unicode", "object"), "task_index": ("int64", "int64")}

@@ -10,7 +10,7 @@ hand's map is an Array3D (2, 21, 21), a flag pair a length-2 list), as `datasets
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,7 +19,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from touchanything.devices.episodes import lerobot_format as fmt
-from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.episodes.episode import Episode, FrameSource
 from touchanything.devices.episodes.lerobot_stats import aggregate, as_json, feature_stats, sample_indices, video_stats
 from touchanything.devices.episodes.video_io import VideoWriter
 from touchanything.devices.snapshot import TRACKER_ROLES
@@ -90,6 +90,17 @@ def _column(values: np.ndarray) -> pa.Array:
     return flat
 
 
+def _pictures(source: FrameSource, indices: Iterable[int]) -> Iterator[np.ndarray]:
+    """Frames `indices` of `source` as the export writes them: a frame the file no longer decodes is black, so that
+    the times stay i / fps (and the statistics are those of the video written)."""
+    blank = None
+    for i in indices:
+        image = source.read(i)
+        if image is None:
+            image = blank = np.zeros((source.height, source.width, 3), np.uint8) if blank is None else blank
+        yield image
+
+
 @dataclass
 class _OpenFile:
     """The data or video file being written: its chunk and file index, frames in it."""
@@ -143,7 +154,7 @@ class LeRobotWriter:
         self._write_data(columns)
         for view in self.views:
             row.update(self._write_video(view, episode, frames))
-            sample = np.stack([episode.views[view].read(i) for i in sample_indices(frames)])
+            sample = np.stack(list(_pictures(episode.views[view], sample_indices(frames))))
             stats[fmt.VIEW_FEATURES[view]] = video_stats(sample)
         row.update({f"stats/{key}/{stat}": np.asarray(value).tolist() for key, values in stats.items()
                     for stat, value in values.items()})
@@ -187,11 +198,7 @@ class LeRobotWriter:
             path.parent.mkdir(parents=True, exist_ok=True)
             writer = VideoWriter(path, self.fps, VIDEO_CRF, fragmented=False, codec_options=VIDEO_OPTIONS)
             self._video_writers[view] = writer
-        source, blank = episode.views[view], None
-        for i in range(frames):
-            image = source.read(i)
-            if image is None:  # a frame the file no longer decodes: black, so that the times stay i / fps
-                image = blank = np.zeros((source.height, source.width, 3), np.uint8) if blank is None else blank
+        for image in _pictures(episode.views[view], range(frames)):
             writer.write(image)
             self.on_frame()
         key = fmt.VIEW_FEATURES[view]
