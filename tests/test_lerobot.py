@@ -80,6 +80,7 @@ def test_export_writes_the_v3_format(two_episodes, tmp_path, capsys):
 def test_rerun_s_lerobot_importer_opens_the_export(two_episodes, tmp_path):
     """Rerun's importer (crates/store/re_lerobot) reads `names` as None, a string, a flat or nested list, or a map
     with exactly one entry, and rejects the whole dataset otherwise; the rerun CLI beside this Python imports it."""
+    import socket
     import subprocess
     import sys
 
@@ -90,8 +91,10 @@ def test_rerun_s_lerobot_importer_opens_the_export(two_episodes, tmp_path):
         names = feature["names"]
         assert names is None or isinstance(names, (str, list)) or (isinstance(names, dict) and len(names) == 1), name
     recording = tmp_path / "x.rrd"
-    proc = subprocess.run([str(Path(sys.executable).parent / "rerun"), str(out), "--save", str(recording),
-                           "--port", "auto"],  # its viewer server's port: a free one when 9876 is taken
+    with socket.socket() as probe:  # its viewer server's port: one the OS has just given out (with `--port auto`, two
+        probe.bind(("127.0.0.1", 0))  # runs started together both saw 9876 free, and one failed to bind it)
+        port = probe.getsockname()[1]
+    proc = subprocess.run([str(Path(sys.executable).parent / "rerun"), str(out), "--save", str(recording), "--port", str(port)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "Failed to import" not in proc.stderr, proc.stderr[-2000:]
     scalars, names = {}, {}
