@@ -82,6 +82,8 @@ EQUIVALENT: dict[tuple[str, str], str] = {
          "the limit moves by 100 bytes in LeRobot's 100 MB; files are closed after a whole episode, never at a byte"),
         ("if self._data_writer.file_handle is not None and self._data_writer.file_handle.tell() > fmt.DATA_FILE_MB * 999999.0:",
          "the limit moves by 100 bytes in LeRobot's 100 MB; files are closed after a whole episode, never at a byte"),
+        ("if self._data_writer.file_handle is not None and self._data_writer.file_handle.tell() >= fmt.DATA_FILE_MB * 1e6:",
+         "a data file of exactly 100 000 000 bytes after an episode: the limit differs by one byte"),
         ("if writer.path.exists() and writer.path.stat().st_size >= fmt.VIDEO_FILE_MB * 1e6:",
          "a video file of exactly 200 000 000 bytes after an episode: the limit differs by one byte"),
         ("if writer.path.exists() and writer.path.stat().st_size > fmt.VIDEO_FILE_MB * 1000001.0:",

@@ -38,8 +38,9 @@ def _hands_and_trackers() -> tuple[np.ndarray, np.ndarray]:
 
 
 def _foreign_dataset(root: Path, flags: bool, tasks: list[str]) -> Path:
-    """One community-layout episode (v2.0, hand order not stated: [right, left] on disk) with joints (2, 21, 3) and
-    trackers (3, 7) under this project's old names, no `timestamp` column, the episode's `tasks` as given and, with
+    """One community-layout episode (v2.0, hand order not stated: [right, left] on disk) at 1 frame/s with joints
+    (2, 21, 3) and trackers (3, 7) under this project's old names, no `timestamp` column, the episode's `tasks` as
+    given and, with
     `flags`, validity columns that say the right hand was not seen on frame 0 and the first tracker not on frame 5."""
     joints, poses = _hands_and_trackers()
     grid = np.where(TactileLayout.default().valid, 0.5, np.nan).astype(np.float32)
@@ -60,6 +61,7 @@ def _foreign_dataset(root: Path, flags: bool, tasks: list[str]) -> Path:
     pq.write_table(table, path)
     info = json.loads((root / "meta" / "info.json").read_text())
     del info["features"]["timestamp"]
+    info["fps"] = 1  # frame i at i s
     info["features"][fmt.JOINTS] = {"dtype": "float32", "shape": [2, 21, 3], "names": None}
     info["features"][fmt.TRACKERS] = {"dtype": "float32", "shape": [3, 7], "names": None}
     (root / "meta" / "info.json").write_text(json.dumps(info))
@@ -77,8 +79,8 @@ def test_another_dataset_s_hands_and_trackers_without_flags_are_valid_where_seen
         assert not episode.wilor.joints[2, 0].any() and not episode.wilor.joints[4, 1].any()
         np.testing.assert_array_equal(episode.trackers.poses, poses)
         assert episode.trackers.valid.tolist() == [[True, False, True], [True] * 3, [True] * 3, [True, False, True], [True] * 3, [True] * 3]
-        # no timestamp column: frame i at i / 30 s, in microseconds
-        assert episode.timestamps_us.tolist() == [0, 33333, 66667, 100000, 133333, 166667]
+        # no timestamp column: frame i at i / fps s, in microseconds
+        assert episode.timestamps_us.tolist() == [0, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 5_000_000]
         assert episode.task == "wipe the table"
         assert any("no hand order in its names; read as [right, left]" in p for p in episode.problems)
 
@@ -141,6 +143,8 @@ def test_an_episode_s_frames_end_where_its_part_of_the_video_ends(tmp_path):
     with open_episode(out / "episode_000001") as episode:
         assert episode.views["ego"].read(-1) is None and episode.views["ego"].read(3) is None
         assert episode.views["ego"].read(0) is not None
+    with pytest.raises(DataError, match=r"episode_000002.*no such episode \(the dataset has 2: episode_000000 … episode_000001\)"):
+        open_episode(out / "episode_000002")
     info = json.loads((out / "meta" / "info.json").read_text())
     info["features"][fmt.STATE]["names"] = [f"value{i}" for i in range(128)]
     (out / "meta" / "info.json").write_text(json.dumps(info))
