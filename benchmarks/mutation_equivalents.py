@@ -72,6 +72,10 @@ EQUIVALENT: dict[tuple[str, str], str] = {
         ("fmt.TRACKERS: poses.reshape(t, - 2), fmt.TRACKERS_VALID: trackers_valid.astype(np.float32),",
          "numpy (2.4) takes any negative size as the one to infer, so reshape(t, -2) is reshape(t, -1)"),
         ("flat = pa.array(values.reshape(- 2))", "numpy (2.4) takes any negative size as the one to infer"),
+        ("return {fmt.STATE: np.concatenate([joints.reshape(t, - 2), seen.astype(np.float32)], axis=1),",
+         "numpy (2.4) takes any negative size as the one to infer"),
+        ("meta.mkdir(parents=False, exist_ok=True)", "meta/'s parent is the writer's folder, which exists (export_lerobot "
+                                                     "creates it before the writer), so no parent is ever made"),
         ('return {"feature": {"dtype": dtype, "_type": "Value"}, "length": shape[ -1], "_type": "List"}',
          "the branch is for a 1-D shape, whose first size is its last"),
         ("if values.ndim == 0:", "a 1-D column then skips both branches and the loop over `values.shape[1:]` (empty), "
