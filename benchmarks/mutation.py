@@ -49,8 +49,8 @@ class Module:
     """Only the mutants inside these functions / methods / classes (cosmic-ray's definition name); () all."""
 
 
-_LEROBOT_TESTS = ("tests/test_lerobot_writer_edges.py", "tests/test_lerobot_reader_edges.py", "tests/test_lerobot_features.py",
-                  "tests/test_lerobot.py")
+_LEROBOT_TESTS = ("tests/test_lerobot_format_edges.py", "tests/test_lerobot_writer_edges.py", "tests/test_lerobot_reader_edges.py",
+                  "tests/test_lerobot_features.py", "tests/test_lerobot.py")
 _LEROBOT_K = ("-k", "not bundled_sample and not eval_and_replay")
 """The LeRobot writer (with its format) and reader: the export and read-back tests, without the two that export the
 whole bundled sample and run eval and replay on it (25 s; they add the commands end to end)."""
