@@ -72,8 +72,8 @@ MODULES = {
                             ("-k", "edges or replacing or check_output_cases")),  # not the commands run end to end
     **{name: Module(f"devices/episodes/{name}.py", _LEROBOT_TESTS, _LEROBOT_K)
        for name in ("lerobot_writer", "lerobot_episode", "lerobot_format")},
-    "lerobot_stats": Module("devices/episodes/lerobot_stats.py", ("tests/test_lerobot_features.py",),
-                            ("-k", "quantiles or statistics")),  # LeRobot's statistics, hand-worked and of an export
+    "lerobot_stats": Module("devices/episodes/lerobot_stats.py", ("tests/test_lerobot_stats_edges.py", "tests/test_lerobot_features.py"),
+                            ("-k", "stats_edges or quantiles or statistics")),  # hand-worked, and of an export
 }
 """The modules under test, in priority order, each with the narrowest tests that cover it (each mutant runs them)."""
 

@@ -38,10 +38,11 @@ def _hands_and_trackers() -> tuple[np.ndarray, np.ndarray]:
 
 
 def _foreign_dataset(root: Path, flags: bool, tasks: list[str]) -> Path:
-    """One community-layout episode (v2.0, hand order not stated: [right, left] on disk) at 1 frame/s with joints
+    """One community-layout episode (v2.0, hand order not stated: [right, left] on disk) at 2 frames/s with joints
     (2, 21, 3) and trackers (3, 7) under this project's old names, no `timestamp` column, the episode's `tasks` as
     given and, with
-    `flags`, validity columns that say the right hand was not seen on frame 0 and the first tracker not on frame 5."""
+    `flags`, validity columns that say the right hand was not seen on frame 0 and the first tracker not on frame 5.
+    Its rows are stored in reverse frame order; its head camera is listed last, after a depth video."""
     joints, poses = _hands_and_trackers()
     grid = np.where(TactileLayout.default().valid, 0.5, np.nan).astype(np.float32)
     write_community_dataset(root, [np.repeat(grid[None], T, axis=0)], [np.zeros((T, 32, 48, 3), np.uint8)])
@@ -58,12 +59,15 @@ def _foreign_dataset(root: Path, flags: bool, tasks: list[str]) -> Path:
         columns[fmt.TRACKERS_VALID] = pa.FixedSizeListArray.from_arrays(pa.array(located.reshape(-1)), 3)
     for name, column in columns.items():
         table = table.append_column(name, column)
-    pq.write_table(table, path)
+    pq.write_table(table.take(np.arange(T)[::-1]), path)  # rows in reverse frame order: read back sorted
     info = json.loads((root / "meta" / "info.json").read_text())
     del info["features"]["timestamp"]
-    info["fps"] = 1  # frame i at i s
+    info["fps"] = 2  # frame i at i / 2 s
     info["features"][fmt.JOINTS] = {"dtype": "float32", "shape": [2, 21, 3], "names": None}
     info["features"][fmt.TRACKERS] = {"dtype": "float32", "shape": [3, 7], "names": None}
+    video = info["features"].pop("observation.images.main")  # the head camera listed after the numeric features,
+    info["features"]["observation.images.depth"] = dict(video)  # behind a video that is no camera of ours
+    info["features"]["observation.images.main"] = video
     (root / "meta" / "info.json").write_text(json.dumps(info))
     (root / "meta" / "episodes.jsonl").write_text(json.dumps({"episode_index": 0, "tasks": tasks, "length": T}) + "\n")
     return root
@@ -80,9 +84,11 @@ def test_another_dataset_s_hands_and_trackers_without_flags_are_valid_where_seen
         np.testing.assert_array_equal(episode.trackers.poses, poses)
         assert episode.trackers.valid.tolist() == [[True, False, True], [True] * 3, [True] * 3, [True, False, True], [True] * 3, [True] * 3]
         # no timestamp column: frame i at i / fps s, in microseconds
-        assert episode.timestamps_us.tolist() == [0, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 5_000_000]
+        assert episode.timestamps_us.tolist() == [0, 500_000, 1_000_000, 1_500_000, 2_000_000, 2_500_000]
         assert episode.task == "wipe the table"
         assert any("no hand order in its names; read as [right, left]" in p for p in episode.problems)
+        assert episode.view_names == ("ego",)
+        assert any("observation.images.depth" in p and "video feature not read" in p for p in episode.problems)
 
 
 def test_another_dataset_s_validity_flags_are_taken_as_they_are(tmp_path):
@@ -150,3 +156,25 @@ def test_an_episode_s_frames_end_where_its_part_of_the_video_ends(tmp_path):
     (out / "meta" / "info.json").write_text(json.dumps(info))
     with pytest.raises(DataError, match=r"observation.state names.*not the 128 names this project exports \(left.wrist.x … right.seen\)"):
         open_episode(out / "episode_000000")
+
+
+def test_a_feature_the_data_lacks_a_missing_video_and_an_empty_dataset_are_named_not_fatal(tmp_path):
+    root = tmp_path / "raw"
+    write_episode(root / "Home" / "pick" / "001", frames=4)
+    out = tmp_path / "lerobot"
+    export_lerobot(root, out)
+    data = out / "data" / "chunk-000" / "file-000.parquet"
+    pq.write_table(pq.read_table(data).drop_columns([fmt.TRACKERS]), data)  # info.json still names it
+    (out / "videos" / fmt.VIEW_FEATURES["wrist_right"] / "chunk-000" / "file-000.mp4").unlink()
+    info = json.loads((out / "meta" / "info.json").read_text())
+    info["features"]["observation.images.head"] = info["features"][fmt.VIEW_FEATURES["ego"]]  # a second head camera
+    (out / "meta" / "info.json").write_text(json.dumps(info))
+    with open_episode(out / "episode_000000") as episode:
+        assert episode.trackers is None and episode.wilor is not None
+        assert episode.view_names == ("ego", "wrist_left")
+        assert any("file-000.mp4" in p and fmt.VIEW_FEATURES["wrist_right"] in p for p in episode.problems)
+        assert any("observation.images.head" in p and "video feature not read" in p for p in episode.problems)
+    empty = write_community_dataset(tmp_path / "empty", [np.zeros((3, 2, 21, 21), np.float32)], [np.zeros((3, 32, 48, 3), np.uint8)])
+    (empty / "meta" / "episodes.jsonl").write_text("")
+    with pytest.raises(DataError, match=r"no such episode \(the dataset has 0: episode_000000 … episode_000000\)"):
+        open_episode(empty / "episode_000000")
