@@ -111,11 +111,28 @@ EQUIVALENT: dict[tuple[str, str], str] = {
          "numpy (2.4) takes any negative size as the one to infer"),
         ("poses, valid = poses.reshape(- 2, 3, 7).astype(np.float32), _flags(table, fmt.TRACKERS_VALID, 3)",
          "numpy (2.4) takes any negative size as the one to infer"),
+        ("values = _array(table, key, (len(cells[ 1]),)) if cells is not None else None",
+         "hand, row and column index arrays of the cells have one length"),
+        ('view = fmt.VIEW_ALIASES.get(key.rsplit(".", 2)[-1])', "the last part of the name is the same however many "
+                                                                "splits are made from the right"),
+        ("valid = hands_valid(joints) & np.any(joints != 0, axis=(-1, +2)) if valid is None else valid",
+         "joints are (frames, 2, 21, 3): axis 2 is axis −2"),
         ("seen = state[:, fmt.JOINT_VALUES:] >= 0.5", "this project's export writes the seen flags as 0.0 or 1.0 "
                                                       "(`frame_features`): no value lies at 0.5"),
         ("except (CosmicRayTestingException, pa.ArrowException) as exc:", "not killable as root: pyarrow raises its read errors as "
          "ArrowException (caught either way) or FileNotFoundError (caught by the clause before); a plain OSError from "
          "pq.read_table needs e.g. a permission denied, which root never gets"),
+    )},
+    **{("devices/episodes/lerobot_stats.py", line): why for line, why in (
+        ("batch = rows.astype(np.result_type(rows.dtype, np.float32), copy=True)", "a copy changes no value"),
+        ('return stats if values.ndim >= 1 else {k: v.reshape(1) if k != "count" else v for k, v in stats.items()}',
+         "a 1-D feature's rows are (n, 1), so its statistics are already of shape (1,): the reshape changes nothing"),
+        ("if max(width, height) >= 299:  # LeRobot's `auto_downsample_height_width`",
+         "at 299 pixels the step is int(299 / 150) = 1: every pixel is kept either way"),
+        ("step = int(width / 150) if width >= height else int(height / 150)",
+         "for a square frame width and height give the same step"),
+        ("counts = np.expand_dims(counts, axis=+1)", "counts is (episodes, 1) and is widened only where every added "
+                                                    "axis has size 1 (video statistics (3, 1, 1)): the same shape either way"),
     )},
 }
 """(module path, the mutant's changed line stripped) → why that mutant cannot change what the module does."""
