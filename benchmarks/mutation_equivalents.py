@@ -125,6 +125,23 @@ EQUIVALENT: dict[tuple[str, str], str] = {
     )},
     **{("devices/episodes/lerobot_stats.py", line): why for line, why in (
         ("batch = rows.astype(np.result_type(rows.dtype, np.float32), copy=True)", "a copy changes no value"),
+        ('QUANTILE_KEYS = tuple(f"q{int(q * 101):02d}" for q in QUANTILES)',
+         "int() truncates 1.01, 10.1, 50.5, 90.9 and 99.99 to the same key names"),
+        ("if inside == -1:", "LeRobot's guard is never true: searchsorted gives the first bin whose cumulative count "
+                             "reaches the target, above the one before, so that bin holds a value"),
+        ("rows = values.reshape(- 2, 1) if values.ndim == 1 else values.reshape(-1, values.shape[-1])",
+         "numpy (2.4) takes any negative size as the one to infer"),
+        ("rows = values.reshape(-1, 1) if values.ndim == 1 else values.reshape(- 2, values.shape[-1])",
+         "numpy (2.4) takes any negative size as the one to infer"),
+        ("stats = vector_stats(frames.reshape(- 2, 3), len(frames))", "numpy (2.4) takes any negative size as the one to infer"),
+        ('return stats if values.ndim > 0 else {k: v.reshape(1) if k != "count" else v for k, v in stats.items()}',
+         "a 1-D feature's rows are (n, 1), so its statistics are already of shape (1,): the reshape changes nothing"),
+        ('return stats if values.ndim > 1 else {k: v.reshape(1) if not k != "count" else v for k, v in stats.items()}',
+         "a 1-D feature's statistics, count included, are already of shape (1,): which of them is reshaped changes nothing"),
+        ('return stats if values.ndim > 1 else {k: v.reshape(1) if k == "count" else v for k, v in stats.items()}',
+         "a 1-D feature's statistics, count included, are already of shape (1,): which of them is reshaped changes nothing"),
+        ("counts = np.expand_dims(counts, axis=- 2)", "counts (episodes, 1) is widened only by axes of size 1: the same "
+                                                      "shape wherever they go"),
         ('return stats if values.ndim >= 1 else {k: v.reshape(1) if k != "count" else v for k, v in stats.items()}',
          "a 1-D feature's rows are (n, 1), so its statistics are already of shape (1,): the reshape changes nothing"),
         ("if max(width, height) >= 299:  # LeRobot's `auto_downsample_height_width`",

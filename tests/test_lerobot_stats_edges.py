@@ -15,6 +15,8 @@ def test_the_quantile_past_the_last_bin_is_the_last_edge():
     assert _quantile(histogram, edges, 2.5) == 3.0  # more than the 2 values counted
     assert _quantile(histogram, edges, 0.5) == 0.0  # within the first bin: its lower edge (as LeRobot)
     assert _quantile(histogram, edges, 1.5) == 2.5  # past the empty bin: half-way through the third
+    # cumulative 2, 4, 6: target 5 lies half-way through the third bin (4 counted before it, 2 in it)
+    assert _quantile(np.array([2.0, 2.0, 2.0]), edges, 5.0) == 2.5
 
 
 def test_two_rows_take_their_quantiles_from_the_histogram_and_one_row_its_own_values():
@@ -42,12 +44,14 @@ def test_a_3d_feature_is_reduced_over_every_axis_but_the_last():
 
 def test_the_frames_sampled_per_episode():
     assert sample_indices(50).tolist() == list(range(50))  # under 100: every frame
+    assert len(sample_indices(100)) == 100 and len(sample_indices(101)) == 100 and len(sample_indices(150)) == 100
     assert len(sample_indices(1000)) == 177  # int(1000 ** 0.75) = 177
     assert len(sample_indices(20_000)) == 1681 and len(sample_indices(10 ** 6)) == 10_000
     assert sample_indices(1000)[[0, -1]].tolist() == [0, 999]
 
 
-@pytest.mark.parametrize(("height", "width", "step"), [(10, 300, 2), (300, 10, 2), (447, 10, 2), (10, 299, 1), (450, 10, 3)])
+@pytest.mark.parametrize(("height", "width", "step"), [(10, 300, 2), (300, 10, 2), (447, 10, 2), (10, 447, 2), (10, 299, 1),
+                                                          (450, 10, 3)])
 def test_video_frames_300_pixels_or_more_across_are_downsampled(height, width, step):
     """Bright lines every 4th pixel from 2 along the long side: every pixel kept sees a quarter of them bright, every
     2nd pixel (from 0) half, every 3rd a quarter (3k mod 4 runs through 0, 3, 2, 1)."""
