@@ -113,6 +113,10 @@ EQUIVALENT: dict[tuple[str, str], str] = {
          "numpy (2.4) takes any negative size as the one to infer"),
         ("values = _array(table, key, (len(cells[ 1]),)) if cells is not None else None",
          "hand, row and column index arrays of the cells have one length"),
+        ("values = _array(table, key, (len(cells[ -1]),)) if cells is not None else None",
+         "hand, row and column index arrays of the cells have one length"),
+        ('return {index: {"episode_index": index} for index in range(int(info.get("total_episodes", -1)))}',
+         "range(-1) is as empty as range(0)"),
         ('view = fmt.VIEW_ALIASES.get(key.rsplit(".", 2)[-1])', "the last part of the name is the same however many "
                                                                 "splits are made from the right"),
         ("valid = hands_valid(joints) & np.any(joints != 0, axis=(-1, +2)) if valid is None else valid",

@@ -11,12 +11,13 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import write_episode
+from conftest import frame_image, write_episode
 from helpers.lerobot_community import write_community_dataset
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.lerobot_episode import read_info
 from touchanything.devices.episodes.lerobot_export import export_lerobot
+from touchanything.devices.episodes.video_io import VideoWriter
 from touchanything.devices.errors import DataError
 from touchanything.devices.tactile_layout import TactileLayout
 
@@ -42,7 +43,7 @@ def _foreign_dataset(root: Path, flags: bool, tasks: list[str]) -> Path:
     (2, 21, 3) and trackers (3, 7) under this project's old names, no `timestamp` column, the episode's `tasks` as
     given and, with
     `flags`, validity columns that say the right hand was not seen on frame 0 and the first tracker not on frame 5.
-    Its rows are stored in reverse frame order; its head camera is listed last, after a depth video."""
+    Its rows are stored in reverse frame order; its head camera is listed last, after a video named `depth`."""
     joints, poses = _hands_and_trackers()
     grid = np.where(TactileLayout.default().valid, 0.5, np.nan).astype(np.float32)
     write_community_dataset(root, [np.repeat(grid[None], T, axis=0)], [np.zeros((T, 32, 48, 3), np.uint8)])
@@ -66,7 +67,7 @@ def _foreign_dataset(root: Path, flags: bool, tasks: list[str]) -> Path:
     info["features"][fmt.JOINTS] = {"dtype": "float32", "shape": [2, 21, 3], "names": None}
     info["features"][fmt.TRACKERS] = {"dtype": "float32", "shape": [3, 7], "names": None}
     video = info["features"].pop("observation.images.main")  # the head camera listed after the numeric features,
-    info["features"]["observation.images.depth"] = dict(video)  # behind a video that is no camera of ours
+    info["features"]["depth"] = dict(video)  # behind a video that is no camera of ours (a name without dots)
     info["features"]["observation.images.main"] = video
     (root / "meta" / "info.json").write_text(json.dumps(info))
     (root / "meta" / "episodes.jsonl").write_text(json.dumps({"episode_index": 0, "tasks": tasks, "length": T}) + "\n")
@@ -88,7 +89,7 @@ def test_another_dataset_s_hands_and_trackers_without_flags_are_valid_where_seen
         assert episode.task == "wipe the table"
         assert any("no hand order in its names; read as [right, left]" in p for p in episode.problems)
         assert episode.view_names == ("ego",)
-        assert any("observation.images.depth" in p and "video feature not read" in p for p in episode.problems)
+        assert any("depth: video feature not read" in p for p in episode.problems)
 
 
 def test_another_dataset_s_validity_flags_are_taken_as_they_are(tmp_path):
@@ -149,6 +150,8 @@ def test_an_episode_s_frames_end_where_its_part_of_the_video_ends(tmp_path):
     with open_episode(out / "episode_000001") as episode:
         assert episode.views["ego"].read(-1) is None and episode.views["ego"].read(3) is None
         assert episode.views["ego"].read(0) is not None
+    with open_episode(out / "episode_000000") as episode:  # its frame 4 would be the file's next episode's frame 0
+        assert episode.views["ego"].read(3) is not None and episode.views["ego"].read(4) is None
     with pytest.raises(DataError, match=r"episode_000002.*no such episode \(the dataset has 2: episode_000000 … episode_000001\)"):
         open_episode(out / "episode_000002")
     info = json.loads((out / "meta" / "info.json").read_text())
@@ -166,6 +169,10 @@ def test_a_feature_the_data_lacks_a_missing_video_and_an_empty_dataset_are_named
     data = out / "data" / "chunk-000" / "file-000.parquet"
     pq.write_table(pq.read_table(data).drop_columns([fmt.TRACKERS]), data)  # info.json still names it
     (out / "videos" / fmt.VIEW_FEATURES["wrist_right"] / "chunk-000" / "file-000.mp4").unlink()
+    short = out / "videos" / fmt.VIEW_FEATURES["wrist_left"] / "chunk-000" / "file-000.mp4"
+    with VideoWriter(short, 30, 10, fragmented=False) as writer:  # 2 of the episode's 4 frames
+        for i in range(2):
+            writer.write(frame_image(1, i, (48, 64)))
     info = json.loads((out / "meta" / "info.json").read_text())
     info["features"]["observation.images.head"] = info["features"][fmt.VIEW_FEATURES["ego"]]  # a second head camera
     (out / "meta" / "info.json").write_text(json.dumps(info))
@@ -174,7 +181,31 @@ def test_a_feature_the_data_lacks_a_missing_video_and_an_empty_dataset_are_named
         assert episode.view_names == ("ego", "wrist_left")
         assert any("file-000.mp4" in p and fmt.VIEW_FEATURES["wrist_right"] in p for p in episode.problems)
         assert any("observation.images.head" in p and "video feature not read" in p for p in episode.problems)
+        assert any("holds 2 frames, the episode needs 4" in p for p in episode.problems)
+        assert episode.views["wrist_left"].read(1) is not None and episode.views["wrist_left"].read(2) is None
     empty = write_community_dataset(tmp_path / "empty", [np.zeros((3, 2, 21, 21), np.float32)], [np.zeros((3, 32, 48, 3), np.uint8)])
     (empty / "meta" / "episodes.jsonl").write_text("")
     with pytest.raises(DataError, match=r"no such episode \(the dataset has 0: episode_000000 … episode_000000\)"):
         open_episode(empty / "episode_000000")
+
+
+def test_a_v2_dataset_without_the_community_head_camera_or_episode_rows(tmp_path):
+    """Without `observation.images.main` a v2.x dataset is not taken for the community conversion: an unstated hand
+    order is read as the official [left, right] (and said); without meta/episodes.jsonl and total_episodes it has
+    no episode."""
+    rng = np.random.default_rng(1)
+    grids = [np.where(TactileLayout.default().valid, rng.random((4, 2, 21, 21)), np.nan).astype(np.float32)]
+    root = write_community_dataset(tmp_path / "other", grids, [np.zeros((4, 32, 48, 3), np.uint8)])
+    (root / "videos" / "chunk-000" / "observation.images.main").rename(root / "videos" / "chunk-000" / "observation.images.ego")
+    info = json.loads((root / "meta" / "info.json").read_text())
+    info["features"]["observation.images.ego"] = info["features"].pop("observation.images.main")
+    (root / "meta" / "info.json").write_text(json.dumps(info))
+    with open_episode(root / "episode_000000") as episode:
+        np.testing.assert_array_equal(episode.pressure.grids, grids[0][:, ::-1])  # as stored: [right, left]
+        assert any("no hand order in its names; read as [left, right]" in p for p in episode.problems)
+        assert episode.view_names == ("ego",)
+    (root / "meta" / "episodes.jsonl").unlink()
+    del info["total_episodes"]
+    (root / "meta" / "info.json").write_text(json.dumps(info))
+    with pytest.raises(DataError, match="the dataset has 0"):
+        open_episode(root / "episode_000000")
