@@ -10,33 +10,27 @@
    same folder, synced to disk and renamed over `path` only when complete (the folder synced after the
    rename, so that a power cut after the command reported success loses nothing); on any error, disk full
    included, the temporary file is removed and an OSError becomes one line (UserError) naming the output. A
-   folder built as a whole goes through `replacing_folder(out)` the same way. The temporary files a process
-   that no longer runs left in the output's folder (killed before it could clean up) are removed first, each
-   named on stderr.
+   folder built as a whole goes through `replacing_folder(out)` the same way. Every temporary entry carries an
+   ownership marker written before it (`temporary_files`); only entries whose marker proves this project wrote
+   them, and whose process provably no longer runs, are removed as leftovers (each named on stderr).
 
-The only exceptions are the recorder's episode folders, written live so that a crash keeps what was
-recorded (they are still checked by rule 1)."""
+The recorder's streams (`RawEpisodeWriter`) are written under temporary names too, renamed into place at the end
+without replacing anything (`rename_new`); a recording cut short keeps its marked streams, which the readers
+find (`temporary_files.recorded_stream`)."""
 from __future__ import annotations
 
 import argparse
 import contextlib
 import errno
 import os
-import re
 import shutil
-import sys
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from touchanything.devices.errors import UserError
 from touchanything.devices.input_paths import collect_inputs
-
-PARTIAL = ".partial-"
-"""In the name of every temporary output: `.<name>.partial-<pid>` beside the output (hidden, and with no suffix
-of its own, so no reader takes a half-written `.hdf5` or `.mp4` for data)."""
-_LEFT_BEHIND = re.compile(r"\..+\.(?:partial|old)-([0-9]+)")
-"""A temporary output (`.<name>.partial-<pid>`) or a replaced folder awaiting removal (`.<name>.old-<pid>`)."""
+from touchanything.devices.temporary_files import mark, marker_path, remove_left_behind, temporary_path, unmark
 
 
 def add_overwrite_argument(parser: argparse.ArgumentParser, what: str) -> None:
@@ -64,7 +58,7 @@ def check_output(out: Path, inputs: Iterable[Path | None] = (), overwrite: bool 
     links inside input folders included (`input_paths`), and an output that is a hard link of an input file
     is that input."""
     out = Path(out)
-    check_name_lengths(out)
+    check_name_lengths(out, temporary=not folder)
     target = out.resolve()
     found = collect_inputs(inputs)
     if (same := found.same_file(target)) is not None:
@@ -101,9 +95,10 @@ def check_outside(out: Path, folders: Iterable[Path]) -> None:
             raise UserError(f"{out}: the output would lie inside the input {folder}; choose a folder outside it")
 
 
-def check_name_lengths(out: Path) -> None:
-    """UserError when a name in `out`, or the temporary name its file is first written under, is longer than the
-    file system of its nearest existing folder allows (checked before any work; the OS would refuse it after)."""
+def check_name_lengths(out: Path, temporary: bool = True) -> None:
+    """UserError when a name in `out`, or (`temporary`: `out` is first written under a temporary name) the name of
+    its temporary's ownership marker, the longest the output needs, is longer than the file system of its nearest
+    existing folder allows (checked before any work; the OS would refuse it after)."""
     existing = Path(out)
     while not existing.exists() and existing != existing.parent:
         existing = existing.parent
@@ -111,10 +106,12 @@ def check_name_lengths(out: Path) -> None:
         limit = os.pathconf(existing if existing.is_dir() else existing.parent, "PC_NAME_MAX")
     except (OSError, ValueError):
         limit = 255
-    names = [*Path(out).parts[1 if Path(out).is_absolute() else 0:], temporary_path(out).name]
+    names = [*Path(out).parts[1 if Path(out).is_absolute() else 0:]]
+    names += [marker_path(temporary_path(out)).name] if temporary else []
     longest = max(names, key=lambda name: len(os.fsencode(name)))
     if len(os.fsencode(longest)) > limit:
-        what = "the temporary name it is written under" if longest == names[-1] else f"the name {longest[:24]}…"
+        what = ("the temporary name it is written under" if temporary and longest == names[-1]
+                else f"the name {longest[:24]}…")
         raise UserError(f"{out}: {what} is {len(os.fsencode(longest))} bytes, longer than the file system allows "
                         f"({limit}); choose a shorter name")
 
@@ -139,7 +136,7 @@ def check_writable(folder: Path) -> None:
     if not existing.is_dir():
         raise UserError(f"{folder}: cannot be created ({existing} is not a folder)")
     try:
-        handle, probe = tempfile.mkstemp(prefix=f".touchanything{PARTIAL}", dir=existing)
+        handle, probe = tempfile.mkstemp(prefix=".touchanything-probe-", dir=existing)
         os.close(handle)
         os.unlink(probe)
     except OSError as exc:
@@ -154,47 +151,12 @@ def describe(exc: OSError) -> str:
     return exc.strerror or (str(exc).splitlines() or [type(exc).__name__])[0]
 
 
-def temporary_path(path: Path) -> Path:
-    """The hidden temporary name of `path` in its folder (a writer that chooses the format by the suffix must
-    be told the format)."""
-    path = Path(path)
-    return path.with_name(f".{path.name}{PARTIAL}{os.getpid()}")
-
-
 def _remove(path: Path) -> None:
     with contextlib.suppress(OSError):
         if path.is_dir() and not path.is_symlink():
             shutil.rmtree(path)
         else:
             path.unlink(missing_ok=True)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:  # another user's process: alive
-        return True
-    return True
-
-
-def remove_left_behind(folder: Path) -> list[Path]:
-    """Remove the temporary outputs that processes which no longer run left in `folder` (killed before they
-    could clean up), naming each on stderr; a running process's are left alone. Returns what was removed."""
-    try:
-        entries = list(os.scandir(folder))
-    except OSError:
-        return []
-    removed = []
-    for entry in entries:
-        match = _LEFT_BEHIND.fullmatch(entry.name)
-        if match and int(match.group(1)) != os.getpid() and not _alive(int(match.group(1))):
-            _remove(Path(entry.path))
-            removed.append(Path(entry.path))
-            print(f"removed {entry.path}: left half-written by an interrupted run (process {match.group(1)})",
-                  file=sys.stderr)
-    return removed
 
 
 def sync(path: Path) -> None:
@@ -239,8 +201,7 @@ def replacing(path: Path) -> Iterator[Path]:
     saying it is not confirmed on the disk: what was written is kept, and the command does not report success."""
     path = Path(path)
     temporary = temporary_path(path)
-    with _removed_on_failure(temporary, path):
-        path.parent.mkdir(parents=True, exist_ok=True)
+    with _claimed(temporary, path, "file"):
         remove_left_behind(path.parent)
         yield temporary
         _synced_rename(temporary, path)
@@ -262,9 +223,11 @@ def _swap_in(temporary: Path, out: Path) -> None:
         os.replace(temporary, out)
         return
     old = out.with_name(f".{out.name}.old-{os.getpid()}")
+    mark(old, "replaced", place=out.name)
     os.replace(out, old)
     os.replace(temporary, out)
     _remove(old)
+    unmark(old)
 
 
 def _sync_failure(step: Callable[[], None]) -> OSError | None:
@@ -276,8 +239,15 @@ def _sync_failure(step: Callable[[], None]) -> OSError | None:
 
 
 @contextlib.contextmanager
-def _removed_on_failure(temporary: Path, target: Path) -> Iterator[None]:
-    """On any exception `temporary` is removed; an OSError is raised as one UserError naming `target`."""
+def _claimed(temporary: Path, target: Path, kind: str) -> Iterator[None]:
+    """The block writes `temporary` (a `kind` of temporary_files.KINDS) for `target`: its folder is created and
+    its ownership marker written first (a taken name is refused, never reused); on any exception `temporary`
+    is removed, and an OSError is raised as one UserError naming `target`; the marker goes when the block ends."""
+    try:
+        temporary.parent.mkdir(parents=True, exist_ok=True)
+        mark(temporary, kind)
+    except OSError as exc:
+        raise UserError(f"{target}: not written ({describe(exc)})") from None
     try:
         yield
     except BaseException as exc:
@@ -285,6 +255,23 @@ def _removed_on_failure(temporary: Path, target: Path) -> Iterator[None]:
         if isinstance(exc, OSError):
             raise UserError(f"{target}: not written ({describe(exc)})") from None
         raise
+    finally:
+        unmark(temporary)
+
+
+def rename_new(temporary: Path, path: Path) -> None:
+    """Rename `temporary` to `path`, which must not exist: never replaces anything, not even a link that appeared
+    meanwhile (FileExistsError). A hard link then an unlink, so the check and the rename are one step."""
+    try:
+        os.link(temporary, path, follow_symlinks=False)
+    except OSError as exc:
+        if exc.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.EMLINK, errno.EXDEV):
+            raise
+        if os.path.lexists(path):  # a file system without hard links: checked, then renamed
+            raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(path)) from None
+        os.rename(temporary, path)
+        return
+    os.unlink(temporary)
 
 
 def write_text(path: Path, text: str) -> None:
@@ -300,9 +287,8 @@ def replacing_folder(out: Path, overwrite: bool = False) -> Iterator[Path]:
     the temporary folder is removed and `out` is left as it was."""
     out = Path(out)
     temporary = temporary_path(out)
-    _remove(temporary)
-    with _removed_on_failure(temporary, out):
-        temporary.mkdir(parents=True)
+    with _claimed(temporary, out, "folder"):
+        temporary.mkdir()
         remove_left_behind(out.parent)
         yield temporary
         if out.exists() and not overwrite and any(out.iterdir()):

@@ -17,7 +17,7 @@ from tests.conftest import write_episode
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import SAMPLE_DIR
 from touchanything.devices.episodes.hdf5_output import SOURCE_MARK, WRITTEN_MARK, written_from
-from touchanything.devices.output_safety import PARTIAL
+from touchanything.devices.temporary_files import PARTIAL
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -17,7 +17,8 @@ import pytest
 
 from touchanything.app.cli import main
 from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import PARTIAL, check_output, replacing, replacing_folder, write_text
+from touchanything.devices.output_safety import check_output, replacing, replacing_folder, write_text
+from touchanything.devices.temporary_files import PARTIAL
 from touchanything.inference.training.frame_cache import CACHE_DIR
 from touchanything.viz.comparison_video import is_comparison_video, write_comparison_video
 

@@ -8,8 +8,6 @@ from __future__ import annotations
 import errno
 import os
 import stat
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -17,7 +15,6 @@ import pytest
 from touchanything.devices import output_safety
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import (
-    PARTIAL,
     check_name_lengths,
     check_output,
     check_outside,
@@ -26,19 +23,10 @@ from touchanything.devices.output_safety import (
     describe,
     fsync_fd,
     fsync_path,
-    remove_left_behind,
-    replacing,
     replacing_folder,
-    temporary_path,
     write_text,
 )
-
-
-def dead_pid() -> int:
-    """The id of a process that has ended."""
-    proc = subprocess.Popen([sys.executable, "-c", "pass"])
-    proc.wait()
-    return proc.pid
+from touchanything.devices.temporary_files import OWNER, PARTIAL, temporary_path
 
 
 def refused(message: str, *args, **kwargs) -> str:
@@ -88,7 +76,7 @@ def test_check_outside(tmp_path):
 
 def test_names_at_the_file_systems_limit(tmp_path):
     limit = os.pathconf(tmp_path, "PC_NAME_MAX")
-    extra = len(f".{PARTIAL}{os.getpid()}")  # the temporary name adds a dot, ".partial-" and the process id
+    extra = len(f".{PARTIAL}{os.getpid()}{OWNER}")  # its marker adds a dot, ".partial-", the process id, ".owner"
     check_name_lengths(tmp_path / "new" / ("a" * (limit - extra)))
     with pytest.raises(UserError, match=f"the temporary name it is written under is {limit + 1} bytes, longer than the file "
                                         f"system allows \\({limit}\\)"):
@@ -130,32 +118,6 @@ def test_the_temporary_name_is_hidden_beside_the_output(tmp_path):
     assert temporary_path(tmp_path / "a.hdf5") == tmp_path / f".a.hdf5.partial-{os.getpid()}"
 
 
-def test_only_what_dead_processes_left_is_removed(tmp_path, capsys):
-    dead = dead_pid()
-    running = subprocess.Popen([sys.executable, "-c", "import signal, time\n"  # whatever signals its parent ignores (nohup)
-                                "for s in (signal.SIGHUP, signal.SIGINT, signal.SIGTERM): signal.signal(s, signal.SIG_DFL)\n"
-                                "print('ready', flush=True)\ntime.sleep(60)"], stdout=subprocess.PIPE, text=True)
-    assert running.stdout.readline() == "ready\n"
-    gone = [tmp_path / f".a.hdf5.partial-{dead}", tmp_path / f".data.old-{dead}"]
-    gone[0].write_text("half")
-    (gone[1] / "sub").mkdir(parents=True)
-    kept = [tmp_path / f".b.partial-{os.getpid()}", tmp_path / f".c.partial-{running.pid}", tmp_path / f"d.partial-{dead}",
-            tmp_path / f".e.partial-{dead}x", tmp_path / f".partial-{dead}"]
-    for path in kept:
-        path.write_text("")
-    try:
-        assert sorted(remove_left_behind(tmp_path)) == sorted(gone)
-        with pytest.raises(subprocess.TimeoutExpired):  # asked whether it runs (signal 0), not signalled
-            running.wait(timeout=0.5)
-    finally:
-        running.kill()
-        running.communicate()
-    assert sorted(tmp_path.iterdir()) == sorted(kept)
-    err = capsys.readouterr().err.splitlines()
-    assert sorted(err) == sorted(f"removed {p}: left half-written by an interrupted run (process {dead})" for p in gone)
-    assert remove_left_behind(tmp_path / "absent") == []
-
-
 def test_fsync_of_a_special_file_is_not_an_error_and_a_failure_names_the_path(tmp_path):
     fsync_path(Path("/dev/null"))
     fsync_path(tmp_path, directory=True)
@@ -195,14 +157,6 @@ def test_a_folder_replaces_an_empty_one_and_leaves_no_old_copy(tmp_path):
     assert [p.name for p in out.iterdir()] == ["c"] and [p.name for p in out_b.iterdir()] == ["b"]
 
 
-def test_replacing_clears_what_a_dead_run_left_in_the_output_folder(tmp_path, capsys):
-    dead = dead_pid()
-    (tmp_path / f".r.md.partial-{dead}").write_text("half")
-    with replacing(tmp_path / "r.md") as temporary:
-        temporary.write_text("new")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.md"] and "interrupted run" in capsys.readouterr().err
-
-
 def fake_pathconf(small: Path, limit: int = 100):
     """os.pathconf as on a file system whose folder `small` allows names of `limit` bytes (others 255)."""
     def pathconf(path, name):
@@ -229,7 +183,7 @@ def test_without_a_limit_from_the_os_names_may_have_255_bytes(tmp_path, monkeypa
         raise error
 
     monkeypatch.setattr(output_safety.os, "pathconf", unknown)
-    extra = len(f".{PARTIAL}{os.getpid()}")
+    extra = len(f".{PARTIAL}{os.getpid()}{OWNER}")
     check_name_lengths(tmp_path / ("a" * (255 - extra)))
     with pytest.raises(UserError, match=r"\(255\)"):
         check_name_lengths(tmp_path / ("a" * (256 - extra)))
@@ -279,15 +233,6 @@ def test_a_failed_file_sync_is_reported_even_when_the_folder_syncs(tmp_path, mon
     with pytest.raises(UserError, match="not confirmed on the disk"):
         write_text(tmp_path / "r.md", "complete")
     assert (tmp_path / "r.md").read_text() == "complete"
-
-
-def test_another_users_process_counts_as_running(tmp_path, monkeypatch):
-    def not_permitted(pid, sig):
-        raise PermissionError(errno.EPERM, "Operation not permitted")
-
-    monkeypatch.setattr(output_safety.os, "kill", not_permitted)
-    (tmp_path / ".a.partial-4242").write_text("")
-    assert remove_left_behind(tmp_path) == [] and (tmp_path / ".a.partial-4242").exists()
 
 
 def test_a_file_is_opened_read_only_to_be_synced(tmp_path, monkeypatch):
@@ -340,8 +285,11 @@ def test_a_folder_that_refuses_new_files_is_not_writable(tmp_path, monkeypatch):
 def test_write_text_makes_the_folders_and_syncs_the_file_then_its_folder(tmp_path, monkeypatch):
     opened = []
     real_open = os.open
-    monkeypatch.setattr(output_safety.os, "open", lambda path, flag: opened.append((Path(path), flag)) or real_open(path, flag))
+    monkeypatch.setattr(output_safety.os, "open", lambda path, flag, *mode: opened.append((Path(path), flag))
+                        or real_open(path, flag, *mode))
     out = tmp_path / "a" / "b" / "r.md"
     write_text(out, "x")
     assert out.read_text() == "x"
-    assert opened == [(temporary_path(out), os.O_RDONLY), (out.parent, os.O_RDONLY | os.O_DIRECTORY)]
+    marker = (temporary_path(out).with_name(temporary_path(out).name + OWNER),
+              os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW)  # the ownership marker, written first
+    assert opened == [marker, (temporary_path(out), os.O_RDONLY), (out.parent, os.O_RDONLY | os.O_DIRECTORY)]

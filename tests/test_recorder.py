@@ -4,6 +4,7 @@ killed with SIGKILL that still replays. Its fsyncs and the whole live path are i
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -22,6 +23,7 @@ from touchanything.devices.errors import UserError
 from touchanything.devices.rig.recorder import Recorder, RecorderConfig
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 from touchanything.devices.snapshot import FPS
+from touchanything.devices.temporary_files import recorded_stream
 
 TESTS = Path(__file__).resolve().parent
 
@@ -40,18 +42,18 @@ def record_forever(folder: str) -> None:
 
 def check_synthetic(episode, frames: int) -> None:
     """Every stream of frames 0..frames-1 holds what synthetic_snapshot wrote."""
-    with VideoReader(episode.path / "chest.mp4") as video:
-        for k in range(frames):
-            expected = synthetic_snapshot(k)
-            assert np.abs(video.read(k).astype(int) - expected.images["ego"]).mean() < 8, k
-            valid = expected.joints_valid
-            assert np.array_equal(episode.wilor.valid[k], valid)
-            assert np.array_equal(episode.wilor.joints[k][valid], expected.joints.reshape(2, 21, 3)[valid])
-            present = expected.glove_present
-            assert np.array_equal(episode.glove.present[k], present)
-            assert np.array_equal(episode.glove.raw[k][present], expected.pressure_raw[present])
-            assert episode.glove.timestamps_us is None or episode.glove.timestamps_us[k] == expected.t_us
-            assert episode.trackers is None or episode.trackers.valid[k, 0] == (k >= 10)
+    video = episode.views["ego"]  # the episode's own reader: also a stream cut short
+    for k in range(frames):
+        expected = synthetic_snapshot(k)
+        assert np.abs(video.read(k).astype(int) - expected.images["ego"]).mean() < 8, k
+        valid = expected.joints_valid
+        assert np.array_equal(episode.wilor.valid[k], valid)
+        assert np.array_equal(episode.wilor.joints[k][valid], expected.joints.reshape(2, 21, 3)[valid])
+        present = expected.glove_present
+        assert np.array_equal(episode.glove.present[k], present)
+        assert np.array_equal(episode.glove.raw[k][present], expected.pressure_raw[present])
+        assert episode.glove.timestamps_us is None or episode.glove.timestamps_us[k] == expected.t_us
+        assert episode.trackers is None or episode.trackers.valid[k, 0] == (k >= 10)
 
 
 def test_a_recording_replays_with_every_stream(tmp_path):
@@ -194,27 +196,33 @@ def test_bad_folders_and_settings_are_user_errors(tmp_path):
         Recorder(RecorderConfig(tmp_path / "ep")).start()
 
 
-def test_a_disk_error_is_reported_and_what_was_written_is_kept(tmp_path):
-    folder = tmp_path / "ep"
-    folder.mkdir()
-    (folder / "vive_poses.json").symlink_to("/dev/full")  # the disk fills up when the trackers appear
-    recorder = Recorder(RecorderConfig(folder))
-    recorder.start()
-    for k in range(20):
-        recorder.write(synthetic_snapshot(k))
-    deadline = time.monotonic() + 10
-    while recorder.counters.written + recorder.counters.failed < 20 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert "failed: No space left on device" in recorder.status() and recorder.error.startswith("No space left")
-    kept = r"failed: No space left on device \(.*vive_poses.json\); 10 of the 10 frames written before replay"
-    with pytest.raises(UserError, match=kept):
-        recorder.stop()
-    assert (recorder.counters.written, recorder.counters.failed) == (10, 10)
-    (folder / "vive_poses.json").unlink()  # reading /dev/full never ends
-    with open_episode(folder) as episode:
-        assert episode.num_frames == 10 and episode.pressure.grids.shape == (10, 2, 21, 21)
-        episode.trackers = None
-        check_synthetic(episode, 10)
+@pytest.mark.skipif(os.geteuid() != 0, reason="mounting a tmpfs needs root")
+def test_a_full_disk_is_reported_and_the_frames_said_to_replay_do(tmp_path):
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(disk)], check=True)
+    try:
+        folder = disk / "ep"
+        recorder = Recorder(RecorderConfig(folder))
+        recorder.start()
+        for k in range(600):
+            recorder.write(synthetic_snapshot(k))
+            deadline = time.monotonic() + 10
+            while recorder.counters.written + recorder.counters.failed <= k and time.monotonic() < deadline:
+                time.sleep(0.002)
+            if recorder.counters.failed:
+                break
+        assert "failed: No space left on device" in recorder.status() and recorder.error.startswith("No space left")
+        with pytest.raises(UserError, match=r"failed: No space left on device") as failure:
+            recorder.stop()
+        said = re.search(r"; (\d+) of the (\d+) frames written before replay$", str(failure.value))
+        assert said is not None and int(said[2]) == recorder.counters.written > 0, str(failure.value)
+        with open_episode(folder) as episode:  # what the message says is what replays
+            assert episode.num_frames == int(said[1])
+            replayed = [s.frame_index for s in ReplaySource(episode, ReplayConfig(speed=None))]
+            assert replayed == list(range(int(said[1])))
+    finally:
+        subprocess.run(["umount", str(disk)], check=True)
 
 
 @pytest.mark.multiprocess
@@ -236,8 +244,12 @@ def test_a_killed_recording_replays_up_to_its_last_second_and_its_grids_can_be_r
     with open_episode(folder) as episode:
         frames = episode.num_frames
         assert frames >= (elapsed - 1) * FPS * 0.8, (frames, elapsed)
-        rows = len((folder / "wilor_hands.json").read_text().splitlines())
-        assert rows >= frames and len((folder / "jq_pressure.json").read_text().splitlines()) >= frames
+        # the streams are still under their marked temporary names: a recording cut short names no file
+        assert not any((folder / name).exists() for name in ("chest.mp4", "wilor_hands.json", "jq_pressure.json"))
+        rows = len(recorded_stream(folder, "wilor_hands.json").read_text().splitlines())
+        assert rows >= frames and len(recorded_stream(folder, "jq_pressure.json").read_text().splitlines()) >= frames
+        assert any("chest.mp4: read from .chest.mp4.partial-" in p and "a recording cut short" in p
+                   for p in episode.problems)
         assert episode.pressure is None
         assert any("pressure_grids.npz: missing required file" in p and f"touchanything grids {folder}" in p
                    for p in episode.problems)

@@ -20,10 +20,10 @@ from touchanything.devices.episodes.episode_streams import IDENTITY_WXYZ
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.threaded_source import now_us
-from touchanything.devices.output_safety import temporary_path
 from touchanything.devices.rig.recorder import Recorder, RecorderConfig
 from touchanything.devices.rig.rig_clock import RigClock
 from touchanything.devices.snapshot import FPS, Snapshot
+from touchanything.devices.temporary_files import temporary_path
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,7 @@ import numpy as np
 import rerun as rr
 
 from touchanything.devices.hand_pose import project_wilor
-from touchanything.devices.output_safety import temporary_path
+from touchanything.devices.temporary_files import mark, temporary_path, unmark
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES, VIEW_NAMES
 from touchanything.devices.view_sets import view_label
 from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
@@ -114,6 +114,7 @@ class RerunRecording:
         sinks = []
         if target.rrd is not None:
             target.rrd.parent.mkdir(parents=True, exist_ok=True)  # the output check creates nothing
+            mark(temporary_path(target.rrd), "file")
             sinks.append(rr.FileSink(temporary_path(target.rrd)))
         if self.served is not None:
             sinks.append(rr.GrpcServerSink(bind_ip=self.served.host, port=self.served.grpc_port, server_memory_limit="512MiB"))
@@ -305,3 +306,5 @@ class RerunRecording:
         stream.disconnect()
         if self.target.rrd is not None and temporary_path(self.target.rrd).exists():
             os.replace(temporary_path(self.target.rrd), self.target.rrd)
+        if self.target.rrd is not None:
+            unmark(temporary_path(self.target.rrd))

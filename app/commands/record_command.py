@@ -21,12 +21,14 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from touchanything.app.sessions.scene import read_scene, scene_inputs
     from touchanything.app.sessions.scene_rig import LiveRig
+    from touchanything.devices.episodes.episode_writer import check_new_episode
     from touchanything.devices.output_safety import check_output, check_outside
     from touchanything.devices.rig.recorder import Recorder, RecorderConfig
 
     scene = read_scene(args.scene)
     check_outside(args.out, scene_inputs(scene))
     check_output(args.out, scene_inputs(scene), folder=True)
+    check_new_episode(args.out)
     if args.seconds is not None:
         require_finite_positive("--seconds", args.seconds)
     recorder = Recorder(RecorderConfig(args.out, fsync_s=scene.recording.fsync_s))

@@ -10,7 +10,7 @@ import numpy as np
 
 from touchanything.app.sessions.rerun_output import merge_recordings
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.output_safety import temporary_path
+from touchanything.devices.temporary_files import mark, temporary_path, unmark
 from touchanything.devices.snapshot import TRACKER_ROLES, VIEW_NAMES
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.frame_facts import frame_facts
@@ -32,7 +32,10 @@ class TrajectoryRecordings:
         """One trajectory: its frames, poses, trackers and measured maps beside the predicted (T, 2, 21, 21)
         (NaN where no clip covers a frame), shown on the ground truth's layout mask as in the videos; the views
         outside `used` (those the model took nothing from) marked "not used"."""
-        self.parts_dir.mkdir(parents=True, exist_ok=True)
+        if not self.parts_dir.is_dir():
+            self.parts_dir.parent.mkdir(parents=True, exist_ok=True)
+            mark(self.parts_dir, "folder")
+            self.parts_dir.mkdir()
         part = self.parts_dir / f"{len(self.parts):05d}.rrd"
         recording = RerunRecording(RerunTarget(part), name, {**self.properties, "episode": str(episode.path)})
         metrics = RunningMetrics(self.bend)
@@ -70,3 +73,4 @@ class TrajectoryRecordings:
                 merge_recordings(self.parts, self.out)
         finally:
             shutil.rmtree(self.parts_dir, ignore_errors=True)
+            unmark(self.parts_dir)

@@ -1,7 +1,11 @@
 """Write raw EgoTouch episode folders frame by frame (videos, JSONL streams) and their pressure grids.
 
-JSONL rows are flushed as they are written and videos are fragmented MP4, so a writer that dies keeps
-everything up to its last second; `pressure_grids.npz` is computed from the glove stream at `close()`
+Every stream is written under its temporary name (`.chest.mp4.partial-<pid>`, marked as a recording's:
+`temporary_files`) and renamed into place by `close()`, which never replaces a file: a folder that already holds
+one of the episode's files is refused when the writer is made, so nothing is ever written through a link or over
+a file of someone else's. JSONL rows are flushed as they are written and videos are fragmented MP4, so a writer
+that dies keeps everything up to its last second under the temporary names, where the readers find it
+(`temporary_files.recorded_stream`); `pressure_grids.npz` is computed from the glove stream at `close()`
 (or later with `write_grids_from_glove`, which `touchanything grids FOLDER` runs). What the OS holds
 reaches the disk when the writer's owner calls `sync()` (every file fsync'ed, and the folder's directory
 when files were created since), and at `close()` when the writer is `durable`: that is what survives a
@@ -14,6 +18,7 @@ picture for a frame without it (as a rig that keeps the latest frame of every ca
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -24,13 +29,25 @@ import numpy as np
 from touchanything.devices.episodes.episode_files import write_pressure_grids
 from touchanything.devices.episodes.episode_streams import glove_row, hands_row, read_glove, trackers_row
 from touchanything.devices.episodes.jsonl import json_line
-from touchanything.devices.episodes.raw_episode import GLOVE_FILE, GRIDS_FILE, ROKOKO_FILE, VIDEO_FILES, VIVE_FILE, WILOR_FILE
+from touchanything.devices.episodes.raw_episode import (
+    GLOVE_FILE,
+    GRIDS_FILE,
+    ROKOKO_FILE,
+    VIDEO_FILES,
+    VIVE_FILE,
+    WILOR_FILE,
+    episode_file,
+)
 from touchanything.devices.episodes.video_io import VideoWriter
-from touchanything.devices.errors import DataError
-from touchanything.devices.output_safety import fsync_fd, fsync_path, replacing
+from touchanything.devices.errors import DataError, UserError
+from touchanything.devices.output_safety import fsync_fd, fsync_path, rename_new, replacing
 from touchanything.devices.snapshot import FRAME_PERIOD_US
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import PressureGrids, TactileConfig, process_raw
+from touchanything.devices.temporary_files import mark, recorded_stream, temporary_path, unmark
+
+EPISODE_FILES = (*VIDEO_FILES.values(), WILOR_FILE, ROKOKO_FILE, VIVE_FILE, GLOVE_FILE, GRIDS_FILE)
+"""Every file `RawEpisodeWriter` may create."""
 
 
 @dataclass
@@ -46,6 +63,16 @@ class EpisodeFrame:
     timestamp_us: int | None = None
 
 
+def check_new_episode(folder: Path) -> None:
+    """UserError when `folder` holds a file (or link) of an episode's names, or a recording cut short: an episode
+    is written into a folder without them (a user's `left.mp4` beside their notes is theirs)."""
+    for name in EPISODE_FILES:
+        if os.path.lexists(Path(folder) / name) or recorded_stream(folder, name) is not None:
+            what = "exists" if os.path.lexists(Path(folder) / name) else "is in it as a recording cut short"
+            raise UserError(f"{Path(folder) / name}: {what}; an episode is written into a folder without its files "
+                            "(nothing is replaced): choose a new folder")
+
+
 def write_grids_from_glove(folder: Path, layout: TactileLayout | None = None,
                            config: TactileConfig = TactileConfig()) -> PressureGrids:
     """Compute `pressure_grids.npz` of an episode folder from its `jq_pressure.json`, written under the output
@@ -54,7 +81,7 @@ def write_grids_from_glove(folder: Path, layout: TactileLayout | None = None,
 
     A stream without one usable hand sample (empty, or every sample malformed or non-finite) raises DataError
     before anything is written: the existing grids are kept rather than replaced by meaningless ones."""
-    path = Path(folder) / GLOVE_FILE
+    path = episode_file(folder, GLOVE_FILE)
     stream, problems = read_glove(path)
     if not stream.present.any():
         reason = "no frames" if len(stream.present) == 0 else f"none of its {len(stream.present)} frames holds a usable sample"
@@ -74,6 +101,7 @@ class RawEpisodeWriter:
     def __init__(self, folder: Path, layout: TactileLayout | None = None, config: TactileConfig = TactileConfig(),
                  crf: int = 20, preset: str = "veryfast", durable: bool = False) -> None:
         self.folder = Path(folder)
+        check_new_episode(self.folder)
         created = [p for p in (self.folder, *self.folder.parents) if not p.exists()]
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
@@ -96,8 +124,7 @@ class RawEpisodeWriter:
             if handle is None:
                 if row is None:
                     return
-                handle = self._streams[name] = open(self.folder / name, "w", buffering=1)
-                self._created()
+                handle = self._streams[name] = open(self._begin(name), "x", buffering=1)
                 handle.writelines("{}\n" for _ in range(self.frames))
             handle.write("{}\n" if row is None else json_line(row))
         except OSError as exc:
@@ -107,9 +134,7 @@ class RawEpisodeWriter:
         """The view's writer, opened (after one black frame per earlier episode frame) when first seen."""
         video = self._videos.get(view)
         if video is None:
-            video = self._videos[view] = VideoWriter(self.folder / VIDEO_FILES[view], crf=self.crf,
-                                                                 preset=self.preset)
-            self._created()
+            video = self._videos[view] = VideoWriter(self._begin(VIDEO_FILES[view]), crf=self.crf, preset=self.preset)
             black = np.zeros_like(image, dtype=np.uint8)
             for _ in range(self.frames):
                 video.write(black)
@@ -133,6 +158,13 @@ class RawEpisodeWriter:
         for name, row in rows.items():
             self._line(name, row)
         self.frames += 1
+
+    def _begin(self, name: str) -> Path:
+        """The temporary path stream `name` is written under, its recording marker written first."""
+        temporary = temporary_path(self.folder / name)
+        mark(temporary, "recording", name=name)
+        self._created()
+        return temporary
 
     def _created(self) -> None:
         if self.folder not in self._new_entries:
@@ -172,14 +204,39 @@ class RawEpisodeWriter:
                 finish()
             except Exception as exc:  # noqa: BLE001 - re-raised below, once everything else is closed
                 failure = failure or exc
+        names = [VIDEO_FILES[view] for view in self._videos] + list(self._streams)
         has_glove = GLOVE_FILE in self._streams
         self._videos, self._streams, self._last_images = {}, {}, {}
+        failure = self._put_in_place(names) or failure
         # the grids from the glove stream as written, read back from the closed file: a recording of any
         # length holds no glove history in memory
         grids = write_grids_from_glove(self.folder, self.layout, self.config) if has_glove else None
         if failure is not None:
             raise failure
         return grids
+
+    def _put_in_place(self, names: list[str]) -> Exception | None:
+        """Rename each stream's temporary file to its name (never over a file); the first failure, else None. A
+        stream that cannot take its name stays under its temporary one, still marked, where readers find it."""
+        failure = None
+        for name in names:
+            temporary = temporary_path(self.folder / name)
+            try:
+                rename_new(temporary, self.folder / name)
+            except FileExistsError:
+                failure = failure or UserError(f"{self.folder / name}: appeared while the episode was written; the "
+                                               f"recorded stream is kept as {temporary.name}")
+                continue
+            except OSError as exc:
+                failure = failure or OSError(exc.errno, exc.strerror, str(self.folder / name))
+                continue
+            unmark(temporary)
+        try:
+            if self.durable:
+                fsync_path(self.folder, directory=True)
+        except OSError as exc:
+            failure = failure or exc
+        return failure
 
     def _close_stream(self, name: str, handle: IO[str]) -> None:
         try:

@@ -13,6 +13,7 @@ from touchanything.devices.episodes.episode_files import read_pressure_grids
 from touchanything.devices.episodes.episode_streams import read_glove, read_hands, read_trackers
 from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.errors import DataError, describe
+from touchanything.devices.temporary_files import recorded_stream
 
 VIDEO_FILES = {"ego": "chest.mp4", "wrist_left": "left.mp4", "wrist_right": "right.mp4"}
 WILOR_FILE = "wilor_hands.json"
@@ -26,14 +27,22 @@ QUALITY_FILE = "quality_issues.json"
 REQUIRED_FILES = (*VIDEO_FILES.values(), GRIDS_FILE, WILOR_FILE, GLOVE_FILE)
 
 
+def episode_file(folder: Path, name: str) -> Path:
+    """Where the episode's file `name` is: `folder/name`, or, for a recording cut short before it renamed its
+    streams into place, the stream's marked temporary file (`temporary_files.recorded_stream`)."""
+    path = Path(folder) / name
+    return path if path.exists() else recorded_stream(folder, name) or path
+
+
 def is_raw_episode(folder: Path) -> bool:
-    """The official discovery test: a folder holding `chest.mp4` (or, for recordings, `jq_pressure.json`)."""
-    return (folder / VIDEO_FILES["ego"]).is_file() or (folder / GLOVE_FILE).is_file()
+    """The official discovery test: a folder holding `chest.mp4` (or, for recordings, `jq_pressure.json`; a
+    recording cut short holds them under their temporary names)."""
+    return episode_file(folder, VIDEO_FILES["ego"]).is_file() or episode_file(folder, GLOVE_FILE).is_file()
 
 
 def missing_note(folder: Path, name: str) -> str:
     """Why a required file may be missing, and the fix: a recording cut short has no pressure grids yet."""
-    if name == GRIDS_FILE and (folder / GLOVE_FILE).is_file():
+    if name == GRIDS_FILE and episode_file(folder, GLOVE_FILE).is_file():
         return (f"missing required file (a recording cut short?); compute it from {GLOVE_FILE} with "
                 f"`touchanything grids {folder}`")
     return "missing required file"
@@ -48,7 +57,7 @@ def _try(problems: list[str], read, *args):
 
 
 def _stream(problems: list[str], folder: Path, name: str, read):
-    path = folder / name
+    path = episode_file(folder, name)
     if not path.exists():
         return None
     result = _try(problems, read, path)
@@ -67,11 +76,14 @@ def open_raw_episode(folder: Path) -> Episode:
     folder = Path(folder)
     if not folder.is_dir():
         raise DataError(folder, None, "not a folder" if folder.exists() else "folder not found")
+    files = {name: episode_file(folder, name) for name in (*REQUIRED_FILES, ROKOKO_FILE, VIVE_FILE)}
     problems = [describe(folder / n, None, missing_note(folder, n))
-                for n in REQUIRED_FILES if not (folder / n).exists()]
+                for n in REQUIRED_FILES if not files[n].exists()]
+    problems += [describe(folder / n, None, f"read from {path.name}: a recording cut short before it named its files")
+                 for n, path in files.items() if path.name != n]
     views = {}
     for view, name in VIDEO_FILES.items():
-        if (folder / name).exists() and (reader := _try(problems, VideoReader, folder / name)) is not None:
+        if files[name].exists() and (reader := _try(problems, VideoReader, files[name])) is not None:
             views[view] = reader
     pressure = _try(problems, read_pressure_grids, folder / GRIDS_FILE) if (folder / GRIDS_FILE).exists() else None
     if pressure is not None:

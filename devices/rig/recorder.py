@@ -37,7 +37,7 @@ import numpy as np
 
 from touchanything.devices.episodes.episode_streams import IDENTITY_WXYZ
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
-from touchanything.devices.episodes.raw_episode import VIDEO_FILES, is_raw_episode
+from touchanything.devices.episodes.raw_episode import VIDEO_FILES, episode_file, is_raw_episode
 from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import TRACKER_ROLES, Snapshot
@@ -69,11 +69,20 @@ class RecorderConfig:
 
 
 def replayable_frames(folder: Path) -> int:
-    """How many frames of the recording in `folder` can replay: the head camera's video frames (0 when the video
-    does not open or its first frame does not decode). Only the video is read: another stream of a failed
-    recording may be anything (a device file, a cut line)."""
+    """How many frames of the recording in `folder` can replay: the fewest of its videos' frames, as the episode
+    reader aligns them (0 when the head camera's video is missing, does not open or its first frame does not
+    decode). Only the videos are read: another stream of a failed recording may be anything (a device file, a
+    cut line)."""
+    counts = {view: _video_frames(episode_file(folder, name)) for view, name in VIDEO_FILES.items()
+              if view == "ego" or episode_file(folder, name).exists()}
+    return min(counts.values()) if counts["ego"] else 0
+
+
+def _video_frames(path: Path) -> int:
+    """The frames of a video as its reader counts them; 0 when it does not open or its first frame does not
+    decode."""
     try:
-        reader = VideoReader(Path(folder) / VIDEO_FILES["ego"])
+        reader = VideoReader(path)
     except Exception:  # noqa: BLE001 - a video cut short by a failure may be unreadable in any way
         return 0
     try:
