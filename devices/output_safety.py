@@ -30,7 +30,7 @@ from pathlib import Path
 
 from touchanything.devices.errors import UserError
 from touchanything.devices.input_paths import collect_inputs
-from touchanything.devices.temporary_files import mark, marker_path, remove_left_behind, temporary_path, unmark
+from touchanything.devices.temporary_files import mark, marker_path, remove_left_behind, tag_written, temporary_path, unmark, written_here
 
 
 def add_overwrite_argument(parser: argparse.ArgumentParser, what: str) -> None:
@@ -44,8 +44,9 @@ def _never(path: Path) -> bool:
 
 
 def named(*names: str) -> Callable[[Path], bool]:
-    """An `own` test for outputs with fixed names (a report folder's files): a file of one of these names."""
-    return lambda path: path.name in names and path.is_file()
+    """An `own` test for outputs with fixed names (a report folder's files): a file of one of these names that the
+    project wrote (its tag, `temporary_files.written_here`; a user's file of that name is not)."""
+    return lambda path: path.name in names and written_here(path)
 
 
 def check_output(out: Path, inputs: Iterable[Path | None] = (), overwrite: bool = False, *,
@@ -128,8 +129,8 @@ def check_report_folder(out: Path, names: Iterable[str], inputs: Iterable[Path |
 
 
 def check_writable(folder: Path) -> None:
-    """The nearest existing folder of `folder` (itself or an ancestor) takes a new file: one is created and
-    removed. UserError otherwise."""
+    """The nearest existing folder of `folder` (itself or an ancestor) takes a new file and a byte in it (a full
+    disk is said before any work): one is created, written and removed. UserError otherwise."""
     existing = Path(folder)
     while not existing.exists() and existing != existing.parent:
         existing = existing.parent
@@ -137,8 +138,11 @@ def check_writable(folder: Path) -> None:
         raise UserError(f"{folder}: cannot be created ({existing} is not a folder)")
     try:
         handle, probe = tempfile.mkstemp(prefix=".touchanything-probe-", dir=existing)
-        os.close(handle)
-        os.unlink(probe)
+        try:
+            os.write(handle, b"\0")
+        finally:
+            os.close(handle)
+            os.unlink(probe)
     except OSError as exc:
         raise UserError(f"{folder}: not writable ({describe(exc)})") from None
 
@@ -204,6 +208,7 @@ def replacing(path: Path) -> Iterator[Path]:
     with _claimed(temporary, path, "file"):
         remove_left_behind(path.parent)
         yield temporary
+        tag_written(temporary)
         _synced_rename(temporary, path)
 
 

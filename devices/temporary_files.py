@@ -15,6 +15,11 @@ and only when the process that wrote it provably no longer runs:
 A name alone proves nothing: `.thesis.tex.old-20240101` or `.draft.md.partial-31337` of a user's, without a
 marker, is never touched, whatever its number.
 
+Every file written through the door is also tagged, as it is renamed into place, with the extended attribute
+`user.touchanything` (`tag_written`): a later command recognises its own earlier output of a fixed name (a report)
+by that tag, not by the name (`written_here`). A file copied without its attributes, or on a file system without
+user attributes, is not recognised: replacing it then needs `--overwrite`, the safe way round.
+
 Kinds: `file` and `folder` (a half-written output: removed), `replaced` (an earlier output moved aside while a
 folder output takes its place: put back when its place is empty, else removed), `recording` (a stream of a
 recording that was cut short: data, never removed; `recorded_stream` finds it for the readers).
@@ -36,6 +41,8 @@ OWNER = ".owner"
 """The suffix of an ownership marker: `<temporary name>.owner`."""
 MARK = "touchanything temporary output"
 KINDS = ("file", "folder", "replaced", "recording")
+WRITTEN_ATTRIBUTE = "user.touchanything"
+WRITTEN_VALUE = b"written"
 _MARKER_BYTES = 4096
 """A marker is a few hundred bytes; a larger file of that name is not one."""
 
@@ -50,6 +57,22 @@ def temporary_path(path: Path) -> Path:
 def marker_path(temporary: Path) -> Path:
     """The ownership marker of the temporary entry `temporary`."""
     return Path(temporary).with_name(Path(temporary).name + OWNER)
+
+
+def tag_written(path: Path) -> None:
+    """Tag the file `path` (a temporary about to take its place) as written by the project; a file system without
+    user attributes leaves it untagged."""
+    with contextlib.suppress(OSError):
+        os.setxattr(path, WRITTEN_ATTRIBUTE, WRITTEN_VALUE, follow_symlinks=False)
+
+
+def written_here(path: Path) -> bool:
+    """`path` is a plain file (not a link) that the project wrote: it carries the tag of `tag_written`."""
+    try:
+        return Path(path).is_file() and not Path(path).is_symlink() and \
+            os.getxattr(path, WRITTEN_ATTRIBUTE, follow_symlinks=False) == WRITTEN_VALUE
+    except OSError:
+        return False
 
 
 def _read(path: str) -> str:

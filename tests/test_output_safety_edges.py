@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 import stat
 from pathlib import Path
 
@@ -89,7 +90,12 @@ def test_names_at_the_file_systems_limit(tmp_path):
 def test_a_report_folder_replaces_its_own_files_unless_kept(tmp_path):
     out = tmp_path / "report"
     out.mkdir()
-    (out / "summary.md").write_text("earlier")
+    write_text(out / "summary.md", "earlier")  # written by the project
+    (out / "rows.json").write_text("a user's")
+    with pytest.raises(UserError, match="rows.json: exists; pass --overwrite"):
+        check_report_folder(out, ["summary.md", "rows.json"])
+    check_report_folder(out, ["summary.md", "rows.json"], overwrite=True)
+    (out / "rows.json").unlink()
     check_report_folder(out, ["summary.md", "rows.json"])
     with pytest.raises(UserError, match="summary.md: exists; pass --overwrite"):
         check_report_folder(out, ["summary.md"], keep=True)
@@ -265,12 +271,16 @@ def test_the_first_part_of_a_relative_path_is_checked(tmp_path, monkeypatch):
         check_name_lengths(Path("a" * 150) / "x")
 
 
-def test_named_owns_only_files_of_its_names(tmp_path):
-    (tmp_path / "summary.md").write_text("")
-    (tmp_path / "other.md").write_text("")
+def test_named_owns_only_files_of_its_names_that_the_project_wrote(tmp_path):
+    write_text(tmp_path / "summary.md", "")
+    write_text(tmp_path / "other.md", "")
     (tmp_path / "rows.json").mkdir()
-    own = output_safety.named("summary.md", "rows.json")
-    assert [own(tmp_path / n) for n in ("summary.md", "other.md", "rows.json", "absent.md")] == [True, False, False, False]
+    (tmp_path / "theirs.md").write_text("a user's file of the name")
+    (tmp_path / "link.md").symlink_to(tmp_path / "summary.md")
+    shutil.copy(tmp_path / "summary.md", tmp_path / "copy.md")  # a copy without its attributes
+    own = output_safety.named("summary.md", "rows.json", "theirs.md", "link.md", "copy.md")
+    names = ("summary.md", "other.md", "rows.json", "absent.md", "theirs.md", "link.md", "copy.md")
+    assert [own(tmp_path / n) for n in names] == [True, False, False, False, False, False, False]
 
 
 def test_a_folder_that_refuses_new_files_is_not_writable(tmp_path, monkeypatch):

@@ -14,7 +14,7 @@ from touchanything.app.sessions.bundled import ATLAS_FILE, MODELS_DIR, OUTPUT_DI
 from touchanything.app.sessions.engine_choice import DEFAULT_MODEL, add_device_argument
 from touchanything.app.sessions.setting_choice import budget_request
 from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import check_report_folder, write_text
+from touchanything.devices.output_safety import add_overwrite_argument, check_report_folder, write_text
 from touchanything.inference.evaluation.atlas import file_sha256
 from touchanything.inference.evaluation.bench_intervals import add_intervals, align_rows, paired_comparisons
 from touchanything.inference.evaluation.bench_report import (
@@ -69,6 +69,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--atlas", type=Path, default=ATLAS_FILE,
                         help="with --budget-ms: the atlas to take accuracy from (default: the committed docs/bench/engine.json)")
     add_device_argument(parser)
+    add_overwrite_argument(parser, "--out's engine.json, engine.md and plot (those an earlier bench wrote there are replaced anyway)")
     parser.set_defaults(run=run)
 
 
@@ -131,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
     if args.budget_ms is not None:
         return budget(args)
     check_report_folder(args.out, GPU_OUTPUT_FILES if device.type == "cuda" else OUTPUT_FILES,
-                        (args.data, *(args.models or ())))
+                        (args.data, *(args.models or ())), overwrite=args.overwrite)
     if device.type == "cuda":
         if args.pose_only_baseline:
             raise UserError("--pose-only-baseline needs accuracy, which the GPU bench (latency only) does not measure; "

@@ -7,7 +7,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from touchanything.devices.output_safety import check_output
+from touchanything.devices.output_safety import add_overwrite_argument, check_output
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -22,10 +22,22 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                              "than that is shortened in proportion, with a note")
     parser.add_argument("--blank-images", action="store_true",
                         help="train the pose-only baseline: every frame black (sets data.blank_images: true)")
+    add_overwrite_argument(parser, "--out's checkpoints and config.yaml (replaced anyway when resuming from --out)")
     parser.set_defaults(run=run)
 
 
+def check_run_folder(out: Path, args: argparse.Namespace, names: tuple[str, ...]) -> None:
+    """`out` and the files of `names` in it, before any work: an earlier run's are replaced only with --overwrite or
+    when resuming from a checkpoint in `out` (which is read whole before anything is written)."""
+    inputs = (args.config, args.data, args.split_file)
+    check_output(out, (*inputs, args.resume), folder=True)
+    resuming_here = args.resume is not None and args.resume.resolve().parent == out.resolve()
+    for name in names:
+        check_output(out / name, inputs if resuming_here else (*inputs, args.resume), args.overwrite or resuming_here)
+
+
 def run(args: argparse.Namespace) -> int:
+    from touchanything.inference.model.checkpoint import CONFIG_FILE
     from touchanything.inference.training.train_config import describe_settings, train_config_from_file, with_epochs
     from touchanything.inference.training.trainer import BEST, LAST, Trainer
 
@@ -38,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, model=replace(config.model, blank_images=True))
     run_name = f"{time.strftime('%Y%m%d_%H%M%S')}_{config.model.backbone}_tactile_prediction_{args.config.stem}"
     out = args.out or Path("checkpoints") / run_name
-    check_output(out, (args.config, args.data, args.split_file, args.resume), folder=True)
+    check_run_folder(out, args, (BEST, LAST, CONFIG_FILE))
     if os.environ.get("RANK", "0") == "0":
         print("\n".join([f"config {args.config}", *describe_settings(config)]), flush=True)
     trainer = Trainer(config, args.data, out, args.split_file)

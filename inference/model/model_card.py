@@ -12,6 +12,8 @@ import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from touchanything.devices.output_safety import write_text
+
 CARD_FILE = "model_card.json"
 SPLIT_NAMES = {"test_seen": "seen", "test_unseen": "unseen"}
 
@@ -55,6 +57,7 @@ def read_card(checkpoint: Path) -> ModelCard | None:
 
 
 def write_card(folder: Path, card: ModelCard) -> Path:
+    """Write `card` as the folder's model card (through the output rule: a temporary file renamed into place)."""
     path = Path(folder) / CARD_FILE
-    path.write_text(json.dumps(asdict(card), indent=1) + "\n")
+    write_text(path, json.dumps(asdict(card), indent=1) + "\n")
     return path
