@@ -49,6 +49,17 @@ def test_export_onto_the_folder_holding_a_linked_episode_is_refused(linked_episo
     assert digest(episode) == before
 
 
+def test_export_inside_a_linked_episode_is_refused(linked_episode, capsys):
+    """Issue 42: OUT = PAR/ep/lr, inside the episode ROOT/Home/task/001 links to (a folder not yet there, so the
+    output rule's "holds an input" does not see it): one line naming OUT, the episode and the link; nothing written."""
+    root, par, episode = linked_episode
+    before, listed = digest(par), sorted(par.rglob("*"))
+    code, err = run(["export-lerobot", str(root), str(episode / "lr")], capsys)
+    assert code == 2 and (f"{episode / 'lr'}: the output would lie inside the input {episode} (reached through "
+                          f"{root}/Home/task/001)") in err
+    assert digest(par) == before and sorted(par.rglob("*")) == listed  # nor a temporary file or folder
+
+
 def trajectory(path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     with h5py.File(path, "w") as file:

@@ -108,7 +108,7 @@ def test_rerun_s_lerobot_importer_opens_the_export(two_episodes, tmp_path):
         elif "SeriesLines:names" in batch.schema.names:
             names[chunk.entity_path] = batch.column("SeriesLines:names").to_pylist()[0]
     assert set(scalars) == {"/observation.state", "/observation.tactile", "/observation.trackers", "/observation.tactile_valid",
-                            "/observation.trackers_valid"}
+                            "/observation.trackers_valid", "/observation.views_valid"}
     # the pressure as labelled values: the right glove's cell (row 10, column 10) at frame 5 of the first episode
     cell = names["/observation.tactile"].index("right.r10c10")
     with open_episode(sorted(two_episodes.glob("*/*/*"))[0]) as raw:
@@ -116,6 +116,7 @@ def test_rerun_s_lerobot_importer_opens_the_export(two_episodes, tmp_path):
         joint = names["/observation.state"].index("left.index_4.z")  # joint 8 (index tip), z
         assert scalars["/observation.state"][5][joint] == pytest.approx(float(raw.wilor.joints[5, 0, 8, 2]), abs=1e-5)
     assert names["/observation.trackers"][:4] == ["chest.x", "chest.y", "chest.z", "chest.qw"]
+    assert names["/observation.views_valid"] == ["ego", "wrist_left", "wrist_right"]
 
 
 def test_the_export_reads_back_as_the_same_episodes(two_episodes, tmp_path, capsys):

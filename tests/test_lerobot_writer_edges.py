@@ -17,6 +17,7 @@ from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.episodes.lerobot_export import export_lerobot
 from touchanything.devices.episodes.lerobot_writer import LeRobotWriter, _OpenFile, frame_features
+from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
 
@@ -144,7 +145,8 @@ class _FirstFrames:
 
 def test_frames_a_video_no_longer_decodes_are_written_black_and_the_file_is_a_plain_mp4(tmp_path):
     """The left wrist video decodes 3 of the episode's 6 frames: the export writes frames 3…5 black, so that frame i
-    stays at i / fps; LeRobot's video files are plain MP4 (one index, no fragments: its decoders seek by it); the
+    stays at i / fps, says so (3 filled) and marks them 0.0 in observation.views_valid, which the reader reads as
+    missing frames; LeRobot's video files are plain MP4 (one index, no fragments: its decoders seek by it); the
     video features' info is what LeRobot writes for 3-channel H.264 without sound; tasks.parquet carries the pandas
     index LeRobot reads task texts from."""
     folder = write_episode(tmp_path / "raw" / "Home" / "pick_up_bottle" / "001", frames=6, seed=3)
@@ -154,14 +156,17 @@ def test_frames_a_video_no_longer_decodes_are_written_black_and_the_file_is_a_pl
         pictures = [episode.views["wrist_left"].read(i) for i in range(3)]
         episode.views["wrist_left"] = _FirstFrames(episode.views["wrist_left"], 3)
         writer = LeRobotWriter(out, 30, VIEW_NAMES, sizes, {"train": "0:1"}, SENSOR_CELLS)
-        writer.add(episode, "pick up bottle", {})
+        assert writer.add(episode, "pick up bottle", {}) == {"wrist_left": 3}
         writer.close()
     with open_episode(out / "episode_000000") as back:
-        assert back.num_frames == 6 and back.problems == []
+        assert back.num_frames == 6 and len(back.problems) == 1
+        assert "observation.views_valid: wrist_left: 3 of 6 frames did not decode in the source" in back.problems[0]
         assert [_closest(back.views["wrist_left"].read(i), pictures) for i in range(3)] == [0, 1, 2]
-        assert all(back.views["wrist_left"].read(i).mean() < 2 for i in range(3, 6))  # black (up to the codec)
-    video = (out / "videos" / fmt.VIEW_FEATURES["wrist_left"] / "chunk-000" / "file-000.mp4").read_bytes()
-    assert b"moov" in video and b"moof" not in video
+        assert [back.views["wrist_left"].read(i) for i in range(3, 6)] == [None] * 3
+    path = out / "videos" / fmt.VIEW_FEATURES["wrist_left"] / "chunk-000" / "file-000.mp4"
+    with VideoReader(path) as video:
+        assert all(video.read(i).mean() < 2 for i in range(3, 6))  # black in the file (up to the codec)
+    assert b"moov" in path.read_bytes() and b"moof" not in path.read_bytes()
     info = json.loads((out / "meta" / "info.json").read_text())
     assert info["features"][fmt.VIEW_FEATURES["ego"]]["info"] == {
         "video.height": 48, "video.width": 64, "video.codec": "h264", "video.pix_fmt": "yuv420p",

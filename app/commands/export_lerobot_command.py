@@ -1,6 +1,8 @@
 """`touchanything export-lerobot ROOT OUT`: raw episode folders and HDF5 trajectories as a LeRobot v3.0 dataset
 (the three views as video features, both hands' joints, the 21×21 maps per hand, the tracker poses, the task text,
-the fps and every frame's capture time; docs/data_formats.md, "LeRobot datasets")."""
+the fps and every frame's capture time, which pictures stand in for frames the source did not decode;
+docs/data_formats.md, "LeRobot datasets"). Damage is one `damaged` line per episode, exit status 0; an episode that
+cannot be exported is one `skipped` line, exit status 1."""
 from __future__ import annotations
 
 import argparse
@@ -9,6 +11,7 @@ from typing import TYPE_CHECKING
 
 from touchanything.devices.episodes.lerobot_format import ACTION_CHOICES
 from touchanything.devices.errors import UserError
+from touchanything.devices.input_paths import collect_inputs
 from touchanything.devices.output_safety import add_overwrite_argument, check_output, check_outside
 from touchanything.devices.view_sets import view_set_name
 
@@ -28,13 +31,18 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def check_export_output(root: Path, out: Path, overwrite: bool) -> None:
-    """Before any work: OUT is not inside ROOT (nor ROOT inside OUT) and passes the output rule."""
-    check_outside(out, (root,))
+    """Before any work: OUT lies inside no input folder — ROOT, nor a folder a link in it reaches (an episode stored
+    elsewhere), named with that link — nor holds ROOT, and passes the output rule."""
+    for source in collect_inputs((root,)).paths:
+        try:
+            check_outside(out, (source.resolved,))
+        except UserError:
+            raise UserError(f"{out}: the output would lie inside the input {source.named()}; choose a folder outside it") from None
     check_output(out, (root,), overwrite, whole=True)
 
 
 def _show(bar: tqdm, written: int, total: int) -> None:
-    """Move the progress bar to `written` of `total` video frames."""
+    """Move the progress bar to `written` of `total` episode frames."""
     bar.total = total
     bar.update(written - bar.n)
 
@@ -56,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
     size = sum(p.stat().st_size for p in args.out.rglob("*") if p.is_file()) / 1e6
     print(f"exported  {summary.episodes} episodes, {summary.frames} frames, views {view_set_name(summary.views)}; "
           f"{size:.1f} MB in {args.out}")
+    for line in summary.damaged:
+        print(f"damaged   {line}")
     for problem in summary.skipped:
         print(f"skipped   {problem}")
     print(f"read it   touchanything info {args.out}; replay {args.out}/episode_000000; "

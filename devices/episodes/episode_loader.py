@@ -3,6 +3,7 @@ any plain video (an ego-only episode without poses or pressure)."""
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -79,17 +80,29 @@ def open_video_episode(path: Path) -> Episode:
                    views={"ego": reader}, timestamps_us=stamps, fps=reader.fps)
 
 
-def find_raw_episodes(root: Path) -> list[Path]:
-    """Raw episode folders under `root` (itself included), at most 4 levels deep, sorted. Symbolic links to
-    folders are followed; an episode's path is where its link stands, and a folder reached twice (two links,
-    or a link loop) is read once."""
-    root = Path(root)
-    found, level, seen = [], [root], set()
+def _episode_levels(root: Path) -> Iterator[Path]:
+    """Every folder under `root` (itself included) at most 4 levels deep, not looking inside raw episode folders.
+    Symbolic links to folders are followed; a folder's path is where its link stands, and a folder reached twice
+    (two links, or a link loop) is met once."""
+    level, seen = [Path(root)], set()
     for _ in range(MAX_DEPTH + 1):
         level = [p for p in level if _first_visit(p, seen)]
-        found += [p for p in level if is_raw_episode(p)]
+        yield from level
         level = sorted(c for p in level if not is_raw_episode(p) for c in p.iterdir() if c.is_dir())
-    return sorted(found)
+
+
+def find_raw_episodes(root: Path) -> list[Path]:
+    """Raw episode folders under `root` (itself included), at most 4 levels deep, sorted (`_episode_levels`)."""
+    return sorted(p for p in _episode_levels(root) if is_raw_episode(p))
+
+
+def find_empty_folders(root: Path) -> list[Path]:
+    """Folders under `root` (at most 4 levels deep) holding nothing but hidden entries, sorted: an episode folder
+    whose files were never written, or lost. Hidden folders are not counted."""
+    if not Path(root).is_dir():
+        return []
+    return sorted(p for p in _episode_levels(root)
+                  if not p.name.startswith(".") and not any(not c.name.startswith(".") for c in p.iterdir()))
 
 
 def find_hdf5_files(root: Path) -> list[Path]:

@@ -5,10 +5,11 @@ one-file-per-episode layout of v2.x, as the community EgoTouch conversion has it
 This project's export (`lerobot_format.FEATURE_INFO`) is read by its features' names: the joints and seen flags
 from `observation.state`, the maps from the cells `observation.tactile`'s values are named by (NaN elsewhere and
 for hands `observation.tactile_valid` says were not measured), the trackers from `observation.trackers`; a
-feature exported as `action` says so (`info.exported_from`). Other datasets and older exports are read by name and
-shape: video features by their last name part (`VIEW_ALIASES`), the tactile maps as the float feature of shape
-(2, 21, 21), the joints (2, 21, 3), the trackers (3, 7). The hand order is taken
-from the feature's `names` (`{"hand": [...]}` or a list naming left and right); where no order is stated, a
+feature exported as `action` says so (`info.exported_from`); a picture `observation.views_valid` marks as standing
+in for one the source did not decode reads as missing (None), and the episode's problems count them. Other
+datasets and older exports are read by name and shape: video features by their last name part (`VIEW_ALIASES`),
+the tactile maps as the float feature of shape (2, 21, 21), the joints (2, 21, 3), the trackers (3, 7). The hand
+order is taken from the feature's `names` (`{"hand": [...]}` or a list naming left and right); where no order is stated, a
 dataset laid out like the community EgoTouch conversion (v2.x, head camera `observation.images.main`) is
 [right, left] as that conversion documents, anything else is taken as the official [left, right] and the episode
 says so in its problems. Everything is returned in the official order [left, right].
@@ -34,14 +35,18 @@ from touchanything.devices.snapshot import HANDS
 
 
 class LeRobotFrames:
-    """FrameSource over frames `first`… of a video file that holds several episodes one after the other."""
+    """FrameSource over frames `first`… of a video file that holds several episodes one after the other. `recorded`:
+    (num_frames,) bool, False where the export wrote a black picture in place of one its source did not decode
+    (read as missing, None), or None when every frame is taken as recorded."""
 
-    def __init__(self, reader: VideoReader, first: int, num_frames: int) -> None:
-        self.reader, self.first, self.num_frames = reader, first, num_frames
+    def __init__(self, reader: VideoReader, first: int, num_frames: int, recorded: np.ndarray | None = None) -> None:
+        self.reader, self.first, self.num_frames, self.recorded = reader, first, num_frames, recorded
         self.width, self.height = reader.width, reader.height
 
     def read(self, index: int) -> np.ndarray | None:
-        return self.reader.read(self.first + index) if 0 <= index < self.num_frames else None
+        if not 0 <= index < self.num_frames or (self.recorded is not None and not self.recorded[index]):
+            return None
+        return self.reader.read(self.first + index)
 
     def close(self) -> None:
         self.reader.close()
@@ -218,7 +223,26 @@ def _flags(table: pa.Table, name: str, count: int) -> np.ndarray | None:
     return None if values is None else values.astype(bool)  # bool, or float 0 / 1
 
 
-def _views(root: Path, info: dict, row: dict, index: int, frames: int, problems: list[str]) -> dict[str, LeRobotFrames]:
+def _recorded(root: Path, info: dict, table: pa.Table, index: int, problems: list[str]) -> dict[str, np.ndarray]:
+    """{video feature name's last part: (frames,) bool} from this project's `observation.views_valid` (none when the
+    dataset has none); a line in `problems` for each view with frames the export filled."""
+    feature = info["features"].get(fmt.VIEWS_VALID)
+    names = feature.get("names") if isinstance(feature, dict) else None
+    if not isinstance(names, list) or fmt.VIEWS_VALID not in table.column_names:
+        return {}
+    values = _flags(table, fmt.VIEWS_VALID, len(names))
+    if values is None:
+        raise DataError(root / fmt.INFO_PATH, f"{fmt.VIEWS_VALID} names", f"{len(names)} names for another number of values")
+    for name, recorded in zip(names, values.T):
+        if not recorded.all():
+            problems.append(describe(fmt.episode_address(root, index), fmt.VIEWS_VALID, f"{name}: {int((~recorded).sum())} "
+                                     f"of {len(recorded)} frames did not decode in the source (black in the video); "
+                                     "read as missing"))
+    return dict(zip(map(str, names), values.T))
+
+
+def _views(root: Path, info: dict, row: dict, index: int, frames: int, problems: list[str],
+           recorded: dict[str, np.ndarray]) -> dict[str, LeRobotFrames]:
     views = {}
     for key, feature in info["features"].items():
         if not isinstance(feature, dict) or feature.get("dtype") != "video":
@@ -242,7 +266,7 @@ def _views(root: Path, info: dict, row: dict, index: int, frames: int, problems:
         if reader.num_frames < first + frames:
             problems.append(describe(path, None, f"holds {reader.num_frames} frames, the episode needs {first + frames}; "
                                                  "the missing ones are shown as missing"))
-        views[view] = LeRobotFrames(reader, first, frames)
+        views[view] = LeRobotFrames(reader, first, frames, recorded.get(key.rsplit(".", 1)[-1]))
     return views
 
 
@@ -285,5 +309,6 @@ def open_lerobot_episode(root: Path, index: int) -> Episode:
         path=fmt.episode_address(root, index), scene=str(row.get("scene") or ""),
         task=str(row.get("task_name") or (tasks[0] if tasks else "")),
         trajectory_id=str(row.get("trajectory_id") or f"episode_{index:06d}"), num_frames=frames,
-        views=_views(root, info, row, index, frames, problems), timestamps_us=np.asarray(stamps, np.int64),
+        views=_views(root, info, row, index, frames, problems, _recorded(root, info, table, index, problems)),
+        timestamps_us=np.asarray(stamps, np.int64),
         wilor=wilor, trackers=trackers, pressure=pressure, problems=problems, fps=fps)

@@ -2,7 +2,9 @@
 checked before any work, written into a temporary folder beside the output and renamed into place when
 complete. Each episode's scene, task and trajectory id and its pressure attributes go into the episodes
 metadata, so that reading the export back gives the same Episode; a `split.json` of the source becomes one over
-the exported episodes (`ROOT/episode_NNNNNN`), so `eval --data OUT` evaluates the export."""
+the exported episodes (`ROOT/episode_NNNNNN`), so `eval --data OUT` evaluates the export. Damage is said, one line
+per episode: each view's frames the source did not decode (written black, 0.0 in `observation.views_valid`) and the
+problems found reading it; an episode that cannot be exported (an empty folder among them) is listed as skipped."""
 from __future__ import annotations
 
 import json
@@ -16,20 +18,25 @@ import numpy as np
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.episodes.episode_loader import find_hdf5_files, find_raw_episodes, is_hdf5_path, open_episode
+from touchanything.devices.episodes.episode_loader import find_empty_folders, find_hdf5_files, find_raw_episodes, is_hdf5_path, open_episode
 from touchanything.devices.episodes.lerobot_writer import LeRobotWriter
 from touchanything.devices.errors import DataError, UserError
 from touchanything.devices.output_safety import replacing_folder
 from touchanything.devices.tactile_layout import TactileLayout
 
+SHOWN_PER_STREAM = 3
+"""Problems of one stream quoted in an episode's line (the others are counted)."""
+
 
 @dataclass
 class ExportSummary:
-    """episodes / frames written, the views exported, sources left out with the reason."""
+    """episodes / frames written, the views exported, a line per exported episode with damage (`damage_line`),
+    sources left out with the reason."""
 
     episodes: int = 0
     frames: int = 0
     views: tuple[str, ...] = ()
+    damaged: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
 
 
@@ -44,6 +51,32 @@ def source_episodes(root: Path) -> list[Path]:
 def task_text(task: str) -> str:
     """A task id as LeRobot task text: "slide_box_cardboard" → "slide box cardboard"."""
     return task.replace("_", " ").strip() or "unknown task"
+
+
+def problems_in_brief(problems: list[str], where: Path) -> list[str]:
+    """An episode's problem lines as one part per stream they name, without the episode's path `where`:
+    "wilor_hands.json: line 5: invalid JSON …", or "wilor_hands.json (3 problems): line 5: … / line 9: … / 1 more"."""
+    streams: dict[str, list[str]] = {}
+    for problem in problems:
+        text = problem[len(str(where)):].lstrip("/: ") if problem.startswith((f"{where}/", f"{where}: ")) else problem
+        stream, _, what = text.partition(": ")
+        streams.setdefault(stream, []).append(what)
+    parts = []
+    for stream, whats in streams.items():
+        more = len(whats) - SHOWN_PER_STREAM
+        quoted = " / ".join([w for w in whats[:SHOWN_PER_STREAM] if w] + ([f"{more} more"] if more > 0 else []))
+        name = stream if len(whats) == 1 else f"{stream} ({len(whats)} problems)"
+        parts.append(f"{name}: {quoted}" if quoted else name)
+    return parts
+
+
+def damage_line(path: Path, episode: Episode, filled: dict[str, int]) -> str | None:
+    """What is damaged in the exported episode read from `path`, as one line — each view's frames the source did
+    not decode (`filled`, written black), then the problems found reading it — or None when nothing is."""
+    parts = [f"{view}: {count} of {episode.num_frames} frames do not decode (written black, 0.0 in {fmt.VIEWS_VALID})"
+             for view, count in filled.items()]
+    parts += problems_in_brief(episode.problems, episode.path)
+    return f"{path}: {' | '.join(parts)}" if parts else None
 
 
 def _source_key(path: Path) -> Path:
@@ -80,7 +113,8 @@ def _plan(sources: list[Path], summary: ExportSummary, sensor_cells: np.ndarray)
         try:
             with open_episode(path) as episode:
                 if episode.num_frames == 0 or "ego" not in episode.views:
-                    summary.skipped.append(f"{path}: {'no frames' if episode.num_frames == 0 else 'no ego (chest) video'}")
+                    why = "no frames" if episode.num_frames == 0 else "no ego (chest) video"
+                    summary.skipped.append(" | ".join([f"{path}: {why}", *problems_in_brief(episode.problems, episode.path)]))
                 elif (lost := _values_outside(episode, sensor_cells)) is not None:
                     summary.skipped.append(f"{path}: {lost}")
                 else:
@@ -156,7 +190,7 @@ def check_action(action: str | None) -> None:
 def export_lerobot(root: Path, out: Path, overwrite: bool = False, action: str | None = None,
                    on_frames: Callable[[int, int], None] = lambda written, total: None) -> ExportSummary:
     """Export every episode under `root` into the LeRobot dataset `out`, feature `action` (if any) as LeRobot's
-    `action`; `on_frames(written, total)` after each video frame (of every view) written."""
+    `action`; `on_frames(written, total)` after each episode frame written (every view's picture of it)."""
     check_action(action)
     root, out = Path(root), Path(out)
     sensor_cells = TactileLayout.default().valid
@@ -167,21 +201,24 @@ def export_lerobot(root: Path, out: Path, overwrite: bool = False, action: str |
     plan = _plan(sources, summary, sensor_cells)
     if not plan.paths:
         raise UserError(f"{root}: none of the {len(sources)} episodes can be exported ({summary.skipped[0]})")
+    summary.skipped += [f"{folder}: an empty folder (no episode files)" for folder in find_empty_folders(root)]
     summary.views = plan.views
     split = _source_split(root)
     paths, splits = in_split_order(plan.paths, split)
-    written, total = 0, plan.frames * len(plan.views)
+    written = 0
 
     def frame_written() -> None:
         nonlocal written
         written += 1
-        on_frames(written, total)
+        on_frames(written, plan.frames)
 
     with replacing_folder(out, overwrite) as partial:
         writer = LeRobotWriter(partial, plan.fps, plan.views, plan.sizes, splits, sensor_cells, action, frame_written)
         for path in paths:
             with open_episode(path) as episode:
-                writer.add(episode, task_text(episode.task), _extra(episode, source_name(root, path)))
+                filled = writer.add(episode, task_text(episode.task), _extra(episode, source_name(root, path)))
+                if (line := damage_line(path, episode, filled)) is not None:
+                    summary.damaged.append(line)
             summary.episodes, summary.frames = summary.episodes + 1, summary.frames + episode.num_frames
         writer.close()
         _write_split(split, partial, paths)

@@ -39,6 +39,10 @@ VIEW_FEATURES = {view: f"observation.images.{view}" for view in VIEW_NAMES}
 STATE = "observation.state"
 TACTILE, TACTILE_VALID = "observation.tactile", "observation.tactile_valid"
 TRACKERS, TRACKERS_VALID = "observation.trackers", "observation.trackers_valid"
+VIEWS_VALID = "observation.views_valid"
+"""Per exported view, named by it: 1.0 when the frame's picture is the recorded one, 0.0 when the source did not
+decode it and a black picture stands in its place (named apart from the `observation.images` prefix, which is
+the video features')."""
 CAPTURE_TIME = "capture_time_us"
 """Not an `observation.*` feature: LeRobot's policies take every one of those as an input."""
 ACTION = "action"
@@ -96,6 +100,9 @@ FEATURE_INFO = {
                        "stored; a hand not measured in a frame (observation.tactile_valid false) holds 0"},
     TRACKERS: {"shape": [len(TRACKER_ROLES), len(POSE)], "unit": "m", "frame": "SteamVR tracking space",
                "rotation": "quaternion w, x, y, z"},
+    VIEWS_VALID: {"views": "value k is the video feature observation.images.<name k>",
+                  "meaning": "1.0 when the picture is the recorded one; 0.0 when the source did not decode that frame "
+                             "and a black picture stands in its place"},
 }
 """The `info` of the non-video features: how their values form the project's arrays (LeRobot ignores it)."""
 

@@ -49,13 +49,15 @@ def frame_features(episode: Episode, sensor_cells: np.ndarray) -> dict[str, np.n
             fmt.CAPTURE_TIME: episode.timestamps_us.astype(np.int64)}
 
 
-def numeric_features(sensor_cells: np.ndarray) -> dict[str, dict]:
-    """info.json's entries of the non-video features (before any is renamed `action`)."""
-    features = {}
+def numeric_features(sensor_cells: np.ndarray, views: tuple[str, ...]) -> dict[str, dict]:
+    """info.json's entries of the non-video features (before any is renamed `action`); `views`: the exported ones,
+    which `observation.views_valid` names."""
+    features, dynamic = {}, {fmt.TACTILE: fmt.tactile_names(sensor_cells), fmt.VIEWS_VALID: list(views)}
     for name, dtype, size in ((fmt.STATE, "float32", len(fmt.STATE_NAMES)), (fmt.TACTILE, "float32", int(sensor_cells.sum())),
                               (fmt.TACTILE_VALID, "float32", 2), (fmt.TRACKERS, "float32", len(fmt.TRACKER_NAMES)),
-                              (fmt.TRACKERS_VALID, "float32", len(TRACKER_ROLES)), (fmt.CAPTURE_TIME, "int64", 1)):
-        names = fmt.tactile_names(sensor_cells) if name == fmt.TACTILE else fmt.FEATURE_NAMES[name]
+                              (fmt.TRACKERS_VALID, "float32", len(TRACKER_ROLES)), (fmt.VIEWS_VALID, "float32", len(views)),
+                              (fmt.CAPTURE_TIME, "int64", 1)):
+        names = dynamic[name] if name in dynamic else fmt.FEATURE_NAMES[name]
         features[name] = {"dtype": dtype, "shape": [size], "names": names,
                           **({"info": fmt.FEATURE_INFO[name]} if name in fmt.FEATURE_INFO else {})}
     for name in fmt.INDEX_FEATURES:
@@ -90,15 +92,16 @@ def _column(values: np.ndarray) -> pa.Array:
     return flat
 
 
-def _pictures(source: FrameSource, indices: Iterable[int]) -> Iterator[np.ndarray]:
-    """Frames `indices` of `source` as the export writes them: a frame the file no longer decodes is black, so that
-    the times stay i / fps (and the statistics are those of the video written)."""
+def _pictures(source: FrameSource, indices: Iterable[int]) -> Iterator[tuple[np.ndarray, bool]]:
+    """Frames `indices` of `source` as the export writes them, each with whether it is the recorded picture: a frame
+    the file no longer decodes is black (False), so that the times stay i / fps (and the statistics are those of the
+    video written)."""
     blank = None
     for i in indices:
         image = source.read(i)
         if image is None:
-            image = blank = np.zeros((source.height, source.width, 3), np.uint8) if blank is None else blank
-        yield image
+            blank = np.zeros((source.height, source.width, 3), np.uint8) if blank is None else blank
+        yield (blank, False) if image is None else (image, True)
 
 
 @dataclass
@@ -121,7 +124,7 @@ class LeRobotWriter:
     height) in `sizes`; every episode must have them all, at that size, at `fps`. `splits`: info.json's split
     name → episode range "first:end"; `sensor_cells`: (2, 21, 21) bool, the grid cells exported; `action`: the
     feature written as LeRobot's `action` (one of `lerobot_format.ACTION_CHOICES`), None for none; `on_frame`:
-    called after each video frame written."""
+    called after each frame of an episode written (every view's picture of it)."""
 
     folder: Path
     fps: int
@@ -141,26 +144,31 @@ class LeRobotWriter:
         self._videos = {view: _OpenFile() for view in self.views}
         self._video_writers: dict[str, VideoWriter] = {}
 
-    def add(self, episode: Episode, task: str, extra: dict[str, str]) -> None:
+    def add(self, episode: Episode, task: str, extra: dict[str, str]) -> dict[str, int]:
         """Append one episode (its frames, videos, metadata and statistics); `extra`: more columns of its row in
-        the episodes metadata (strings)."""
+        the episodes metadata (strings). Returns, per view that has any, how many of its frames the source did not
+        decode (written black, 0.0 in `observation.views_valid`)."""
         index, frames = len(self.episodes), episode.num_frames
-        columns = {**self._index_columns(index, self.tasks.setdefault(task, len(self.tasks)), frames),
-                   **{self._key(name): values for name, values in frame_features(episode, self.sensor_cells).items()}}
-        stats = {name: feature_stats(values) for name, values in columns.items()}
         row = {"episode_index": index, "tasks": [task], "length": frames, "data/chunk_index": self._data.chunk,
                "data/file_index": self._data.file, "dataset_from_index": self._frames, "dataset_to_index": self._frames + frames,
                **extra}
+        placed, recorded = self._write_videos(episode, frames)
+        features = {**frame_features(episode, self.sensor_cells), fmt.VIEWS_VALID: recorded}
+        columns = {**self._index_columns(index, self.tasks.setdefault(task, len(self.tasks)), frames),
+                   **{self._key(name): values for name, values in features.items()}}
+        stats = {name: feature_stats(values) for name, values in columns.items()}
         self._write_data(columns)
         for view in self.views:
-            row.update(self._write_video(view, episode, frames))
-            sample = np.stack(list(_pictures(episode.views[view], sample_indices(frames))))
+            sample = np.stack([image for image, _ in _pictures(episode.views[view], sample_indices(frames))])
             stats[fmt.VIEW_FEATURES[view]] = video_stats(sample)
+        row.update(placed)
         row.update({f"stats/{key}/{stat}": np.asarray(value).tolist() for key, values in stats.items()
                     for stat, value in values.items()})
         self.episodes.append(row)
         self._stats.append(stats)
         self._frames += frames
+        filled = frames - recorded.sum(axis=0).astype(int)
+        return {view: int(count) for view, count in zip(self.views, filled) if count}
 
     def _key(self, name: str) -> str:
         """The key feature `name` is written under."""
@@ -188,20 +196,36 @@ class LeRobotWriter:
             self._data_writer = None
             self._data.advance()
 
-    def _write_video(self, view: str, episode: Episode, frames: int) -> dict:
-        """Append the episode's frames of `view` to its current video file; the episodes-metadata columns."""
-        at = self._videos[view]
-        writer = self._video_writers.get(view)
-        if writer is None:
+    def _write_videos(self, episode: Episode, frames: int) -> tuple[dict, np.ndarray]:
+        """Append the episode's frames to each view's current video file, frame by frame (`on_frame` after each);
+        the episodes-metadata columns, and (frames, views) float32: 1.0 where the picture is the recorded one."""
+        writers = [self._video_writer(view) for view in self.views]
+        recorded = np.zeros((frames, len(self.views)), np.float32)
+        streams = [_pictures(episode.views[view], range(frames)) for view in self.views]
+        for i, pictures in enumerate(zip(*streams)):
+            for k, (image, is_recorded) in enumerate(pictures):
+                writers[k].write(image)
+                recorded[i, k] = is_recorded
+            self.on_frame()
+        placed = {}
+        for view in self.views:
+            placed.update(self._video_placed(view, frames))
+        return placed, recorded
+
+    def _video_writer(self, view: str) -> VideoWriter:
+        """The open video file of `view` (a new one when none is open)."""
+        if view not in self._video_writers:
+            at = self._videos[view]
             path = self.folder / fmt.VIDEO_PATH.format(video_key=fmt.VIEW_FEATURES[view], chunk_index=at.chunk,
                                                         file_index=at.file)
             path.parent.mkdir(parents=True, exist_ok=True)
-            writer = VideoWriter(path, self.fps, VIDEO_CRF, fragmented=False, codec_options=VIDEO_OPTIONS)
-            self._video_writers[view] = writer
-        for image in _pictures(episode.views[view], range(frames)):
-            writer.write(image)
-            self.on_frame()
-        key = fmt.VIEW_FEATURES[view]
+            self._video_writers[view] = VideoWriter(path, self.fps, VIDEO_CRF, fragmented=False, codec_options=VIDEO_OPTIONS)
+        return self._video_writers[view]
+
+    def _video_placed(self, view: str, frames: int) -> dict:
+        """Where the episode's `frames` just written lie in `view`'s video file (the episodes-metadata columns); a
+        file past LeRobot's size is closed and the next begun."""
+        at, writer, key = self._videos[view], self._video_writers[view], fmt.VIEW_FEATURES[view]
         columns = {f"videos/{key}/chunk_index": at.chunk, f"videos/{key}/file_index": at.file,
                    f"videos/{key}/from_timestamp": at.frames / self.fps,
                    f"videos/{key}/to_timestamp": (at.frames + frames) / self.fps}
@@ -241,7 +265,7 @@ class LeRobotWriter:
                 "dtype": "video", "shape": [height, width, 3], "names": ["height", "width", "channels"],
                 "info": {"video.height": height, "video.width": width, "video.codec": "h264", "video.pix_fmt": "yuv420p",
                          "video.is_depth_map": False, "video.fps": self.fps, "video.channels": 3, "has_audio": False}}
-        for name, feature in numeric_features(self.sensor_cells).items():
+        for name, feature in numeric_features(self.sensor_cells, self.views).items():
             if name == self.action:
                 feature = {**feature, "info": {**feature.get("info", {}), "exported_from": name}}
             features[self._key(name)] = feature
