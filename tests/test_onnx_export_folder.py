@@ -1,7 +1,7 @@
 """Issue 37: an ONNX export carries the SHA-256 of the weights it was made from (in engine.json and in every
-graph file), running it beside other weights is refused naming both, exporting again replaces the whole
-folder, the user cache is keyed and checked by the same digest, and `replay`/`demo`/`live` run an export
-folder with `--onnx DIR`."""
+graph file), running it beside other weights is refused naming both, exporting again replaces only the
+export's own files in its folder (issue 42), the user cache is keyed and checked by the same digest, and
+`replay`/`demo`/`live` run an export folder with `--onnx DIR`."""
 from __future__ import annotations
 
 import hashlib
@@ -17,6 +17,7 @@ import pytest
 import torch
 
 from tests.conftest import write_episode
+from tests.test_output_safety import limited_run
 from touchanything.app.cli import main
 from touchanything.app.commands.live_command import open_live_session
 from touchanything.app.sessions.bundled import MODELS_DIR
@@ -27,6 +28,7 @@ from touchanything.inference.engine.engine_config import EngineConfig
 from touchanything.inference.engine.live_engine import LiveEngine
 from touchanything.inference.engine.onnx_cache import onnx_cache_dir
 from touchanything.inference.engine.onnx_export import weights_sha256
+from touchanything.inference.engine.onnx_export_folder import earlier_files
 from touchanything.inference.engine.onnx_runtime import OnnxRuntime
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.checkpoint import load_model, save_checkpoint
@@ -114,23 +116,104 @@ def test_old_exports_and_foreign_graph_files_are_refused(nano_export, perturbed_
         OnnxRuntime(mixed)
 
 
-def test_exporting_again_replaces_the_whole_folder(perturbed, perturbed_nano_export, tmp_path, capsys):
+def sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def add_user_files(folder: Path) -> dict[Path, str]:
+    """A user's files beside an export: a note and a run log in a sub-folder; returns their SHA-256."""
+    (folder / "my_notes.txt").write_text("notes of mine\n")
+    (folder / "my_runs").mkdir()
+    (folder / "my_runs" / "run1.csv").write_text("frame,score\n0,0.5\n")
+    return {path: sha256(path) for path in (folder / "my_notes.txt", folder / "my_runs" / "run1.csv")}
+
+
+EXPORT = ["encoder.onnx", "engine.json", "head.onnx"]
+
+
+def test_exporting_again_replaces_only_the_exports_files(perturbed_nano_export, tmp_path, capsys):
+    """Issue 42: the user's files in an earlier export's folder survive byte for byte, the earlier export's int8
+    graphs the new one does not write are removed and named, and a symbolic link at a graph's name is replaced,
+    not written through."""
     out = shutil.copytree(perturbed_nano_export, tmp_path / "graphs")  # an export of other weights, with int8
-    assert (out / "encoder.int8.onnx").is_file() and (out / "head.int8.onnx").is_file()
+    kept = add_user_files(out)
+    elsewhere = tmp_path / "elsewhere.onnx"
+    elsewhere.write_bytes(b"a graph of mine, outside the folder")
+    (out / "encoder.onnx").unlink()
+    (out / "encoder.onnx").symlink_to(elsewhere)
+    kept[elsewhere] = sha256(elsewhere)
     assert main(["export-onnx", "--checkpoint", str(NANO), "--out", str(out)]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["encoder.onnx", "engine.json", "head.onnx"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["graphs"]  # no temporary or old folder left beside it
+    assert capsys.readouterr().err.strip() == (f"removed {out / 'encoder.int8.onnx'}, {out / 'head.int8.onnx'}: listed "
+                                               "by the earlier export, not written by this one")
+    assert sorted(p.name for p in out.iterdir()) == [*EXPORT, "my_notes.txt", "my_runs"]  # no temporary file left
+    assert {path: sha256(path) for path in kept} == kept and not (out / "encoder.onnx").is_symlink()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["elsewhere.onnx", "graphs"]
     assert json.loads((out / "engine.json").read_text())["weights_sha256"] == reference_sha256(load_model(NANO))
     StreamingEngine(load_model(NANO), EngineConfig(runtime="onnx", onnx_dir=out))
-    capsys.readouterr()
-    other = tmp_path / "notes"
-    other.mkdir()
-    (other / "keep.txt").write_text("mine")
-    assert main(["export-onnx", "--checkpoint", str(NANO), "--out", str(other)]) == 2
-    assert one_error_line(capsys) == f"touchanything export-onnx: error: {other}: folder is not empty; pass --overwrite to replace it"
-    assert (other / "keep.txt").read_text() == "mine"
-    assert main(["export-onnx", "--checkpoint", str(perturbed), "--out", str(perturbed.parent)]) == 2
-    assert "holds the input" in one_error_line(capsys) and perturbed.is_file()
+
+
+def test_a_folder_without_an_export_is_written_into_only_with_overwrite_and_keeps_its_files(tmp_path, capsys):
+    """A non-empty folder that holds no export is refused; with --overwrite the export's files are written beside
+    the user's, and a hard link at a graph's name is replaced, its other name (outside the folder) left intact."""
+    out = tmp_path / "notes"
+    out.mkdir()
+    kept = add_user_files(out)
+    elsewhere = tmp_path / "elsewhere.onnx"
+    elsewhere.write_bytes(b"a graph of mine, outside the folder")
+    (out / "encoder.onnx").hardlink_to(elsewhere)
+    kept[elsewhere] = sha256(elsewhere)
+    assert main(["export-onnx", "--checkpoint", str(NANO), "--out", str(out)]) == 2
+    assert one_error_line(capsys) == (f"touchanything export-onnx: error: {out}: folder is not empty and holds no "
+                                      "earlier export; pass --overwrite to write the export's files into it (nothing "
+                                      "else there is removed)")
+    assert sorted(p.name for p in out.iterdir()) == ["encoder.onnx", "my_notes.txt", "my_runs"]
+    assert main(["export-onnx", "--checkpoint", str(NANO), "--out", str(out), "--overwrite"]) == 0
+    assert "removed" not in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == [*EXPORT, "my_notes.txt", "my_runs"]
+    assert {path: sha256(path) for path in kept} == kept and elsewhere.stat().st_nlink == 1
+    StreamingEngine(load_model(NANO), EngineConfig(runtime="onnx", onnx_dir=out))
+
+
+def test_an_input_or_a_foreign_file_at_an_exports_name_is_refused_before_any_work(nano_export, perturbed, tmp_path,
+                                                                                  capsys):
+    """Refused before a model is loaded: an input at one of the export's names (even with --overwrite, also one
+    an earlier manifest lists), a file the earlier export does not list (without --overwrite), the checkpoint's
+    own folder (it holds no export). The manifest's names count only as entries directly in the folder."""
+    linked = tmp_path / "linked"
+    linked.mkdir()
+    (linked / "encoder.onnx").hardlink_to(perturbed)
+    listed = shutil.copytree(nano_export, tmp_path / "listed")
+    (listed / "old.onnx").hardlink_to(perturbed)
+    manifest = json.loads((listed / "engine.json").read_text())
+    manifest["files"]["int8"] = {"encoder": "old.onnx", "head": "../elsewhere.onnx"}
+    (listed / "engine.json").write_text(json.dumps(manifest))
+    assert earlier_files(listed) == {"encoder.onnx", "engine.json", "head.onnx", "old.onnx"}
+    foreign = shutil.copytree(nano_export, tmp_path / "foreign")
+    (foreign / "head.int8.onnx").write_text("mine")
+    before = {path: sha256(path) for path in [*tmp_path.rglob("*"), *perturbed.parent.iterdir()] if path.is_file()}
+    for extra, line in [
+        (["--out", str(linked), "--overwrite"], f"{linked / 'encoder.onnx'}: is the input {perturbed} under another name"),
+        (["--out", str(listed)], f"{listed / 'old.onnx'}: is the input {perturbed} under another name"),
+        (["--out", str(foreign), "--int8"], f"{foreign / 'head.int8.onnx'}: exists; pass --overwrite to replace it"),
+        (["--out", str(perturbed.parent)], f"{perturbed.parent}: folder is not empty and holds no earlier export"),
+    ]:
+        assert main(["export-onnx", "--checkpoint", str(perturbed), *extra]) == 2
+        assert one_error_line(capsys).startswith(f"touchanything export-onnx: error: {line}")
+    assert {path: sha256(path) for path in [*tmp_path.rglob("*"), *perturbed.parent.iterdir()] if path.is_file()} == before
+
+
+def test_an_export_that_fails_leaves_the_folder_as_it_was(perturbed_nano_export, tmp_path):
+    """The graphs and engine.json are renamed into place only once all are written: a write that fails (files may
+    not grow past 64 kB in the process: EFBIG, as a full disk's ENOSPC) leaves every file of the earlier export
+    (and the user's) as it was, and no temporary file."""
+    out = shutil.copytree(perturbed_nano_export, tmp_path / "graphs")
+    add_user_files(out)
+    before = {path: sha256(path) for path in out.rglob("*") if path.is_file()}
+    run = limited_run(["export-onnx", "--checkpoint", str(NANO), "--out", str(out)], max_bytes=64_000)
+    assert run.returncode == 2, run.stderr
+    assert run.stderr.strip() == (f"touchanything export-onnx: error: {out / 'encoder.onnx'}: not written (File too "
+                                  "large)")
+    assert {path: sha256(path) for path in out.rglob("*") if path.is_file()} == before
 
 
 def test_the_user_cache_is_keyed_by_the_weights_filled_once_and_a_running_engine_is_left_alone(
@@ -181,7 +264,8 @@ def test_a_failed_cache_export_is_one_line(tmp_path, monkeypatch):
     with pytest.raises(UserError) as refused:
         StreamingEngine(model, EngineConfig(runtime="onnx"))
     folder = tmp_path / "cache" / "touchanything" / "onnx" / reference_sha256(model)[:16]
-    assert str(refused.value) == f"{folder}: exporting the ONNX graphs into the cache failed: not written (Not a directory)"
+    assert str(refused.value) == (f"{folder}: exporting the ONNX graphs into the cache failed: cannot be created "
+                                  f"({tmp_path / 'cache'} is not a folder)")
 
 
 def test_replay_runs_an_export_folder_and_names_it(nano_export, tmp_path, capsys):

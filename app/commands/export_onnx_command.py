@@ -7,9 +7,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from touchanything.devices.output_safety import add_overwrite_argument, check_output
 from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.inference.engine.onnx_manifest import MANIFEST, is_export
+from touchanything.inference.engine.onnx_export_folder import check_export_folder, export_files, export_names
+from touchanything.inference.engine.onnx_manifest import MANIFEST
 
 if TYPE_CHECKING:
     from touchanything.inference.engine.engine_runtime import TorchRuntime
@@ -21,10 +21,15 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--checkpoint", type=Path, required=True, help="model checkpoint in the official format")
     parser.add_argument("--config", type=Path, help="config.yaml (default: beside the checkpoint)")
     parser.add_argument("--out", type=Path, required=True,
-                        help="output folder (encoder/head graphs, engine.json), built as a whole: an earlier export "
-                             "there is replaced entirely")
+                        help="output folder for the encoder/head graphs and engine.json; the files of an earlier "
+                             "export there are replaced (those this export does not write, removed), any other file "
+                             "is kept")
     parser.add_argument("--int8", action="store_true", help="also write int8 graphs (dynamic quantisation)")
-    add_overwrite_argument(parser, "--out when it is a non-empty folder that holds no earlier export")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace files in --out that have the names of the export's files but are not listed "
+                             "by an earlier export there, and write into a non-empty --out that holds no earlier "
+                             "export (default: refuse; the folder's other files are kept, and an input of the "
+                             "command is never replaced)")
     parser.set_defaults(run=run)
 
 
@@ -47,10 +52,10 @@ def run(args: argparse.Namespace) -> int:
     from touchanything.inference.engine.onnx_runtime import OnnxRuntime
     from touchanything.inference.model.checkpoint import load_model
 
-    overwrite = args.overwrite or is_export(args.out)
-    check_output(args.out, (args.checkpoint, args.config), overwrite, whole=True)
+    check_export_folder(args.out, export_names(export_files(args.int8)), (args.checkpoint, args.config), args.overwrite)
     model = load_model(args.checkpoint, args.config)
-    manifest = export_onnx(model, args.out, int8=args.int8, source=str(args.checkpoint.resolve()), overwrite=overwrite)
+    manifest = export_onnx(model, args.out, int8=args.int8, source=str(args.checkpoint.resolve()),
+                           overwrite=args.overwrite)
     reference = TorchRuntime(model)
     for precision, files in manifest["files"].items():
         sizes = ", ".join(f"{name} {(args.out / name).stat().st_size / 1e6:.1f} MB" for name in files.values())

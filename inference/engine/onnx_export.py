@@ -10,8 +10,10 @@
   weights (`weights_sha256`, also in every graph file's metadata) and the source checkpoint
   (`touchanything.inference.engine.onnx_manifest`).
 
-The folder is built as a whole and then takes the place of the old one, so no graph of an earlier export
-(another model's int8 graphs, say) survives a new export.
+Only the export's own files are replaced in the folder (`onnx_export_folder`): each is written to a temporary
+file beside it, and all are renamed into place once every one is complete, `engine.json` last, so an
+interrupted export leaves the folder as it was. The graphs an earlier export listed that this one does not
+write (its int8 graphs, say) are removed after that; any other file there is left alone.
 """
 from __future__ import annotations
 
@@ -21,15 +23,16 @@ import io
 import json
 import logging
 import warnings
-from contextlib import contextmanager, redirect_stderr, redirect_stdout
+from contextlib import ExitStack, contextmanager, redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import torch
 
-from touchanything.devices.output_safety import replacing_folder
+from touchanything.devices.output_safety import replacing
 from touchanything.inference.engine.frame_encoder import bake_position_embedding
 from touchanything.inference.engine.model_halves import model_halves
-from touchanything.inference.engine.onnx_manifest import MANIFEST, WEIGHTS_KEY, is_export
+from touchanything.inference.engine.onnx_export_folder import check_export_folder, export_files, export_names, remove_stale
+from touchanything.inference.engine.onnx_manifest import MANIFEST, WEIGHTS_KEY
 from touchanything.inference.engine.window_head import JOINTS_PER_HAND
 from touchanything.inference.model.model_config import config_to_dict
 from touchanything.inference.model.models import TactileModel
@@ -65,9 +68,10 @@ def weights_sha256(model: TactileModel) -> str:
     return digest.hexdigest()
 
 
-def _export(module: torch.nn.Module, args: tuple, names: list[str], dynamic: dict, path: Path, weights: str) -> None:
+def _export(module: torch.nn.Module, args: tuple, names: list[str], output: str, dynamic: dict, path: Path,
+            weights: str) -> None:
     with quiet_exporter():
-        program = torch.onnx.export(module, args, dynamo=True, input_names=names, output_names=[path.stem],
+        program = torch.onnx.export(module, args, dynamo=True, input_names=names, output_names=[output],
                                     dynamic_shapes=dynamic, opset_version=OPSET, verbose=False)
     program.model.metadata_props[WEIGHTS_KEY] = weights
     program.save(str(path))
@@ -77,7 +81,7 @@ def export_encoder(model: TactileModel, path: Path, weights: str) -> None:
     size = model.config.image_size
     views = torch.export.Dim("views", min=1, max=3)
     args = (torch.zeros(2, 3, size, size), torch.arange(2))
-    _export(model_halves(model)[0].eval(), args, ["images", "view_ids"],
+    _export(model_halves(model)[0].eval(), args, ["images", "view_ids"], "encoder",
             {"images": {0: views}, "view_ids": {0: views}}, path, weights)
 
 
@@ -88,8 +92,8 @@ def export_head(model: TactileModel, path: Path, weights: str) -> None:
             torch.tensor([WINDOW - 1, 0]))
     dynamic = {"frame_tokens": None, "joints": {0: outputs, 1: JOINTS_PER_HAND * hands},
                "joint_ids": {0: JOINTS_PER_HAND * hands}, "positions": {0: outputs}}
-    _export(model_halves(model)[1].eval(), args, ["frame_tokens", "joints", "joint_ids", "positions"], dynamic, path,
-            weights)
+    _export(model_halves(model)[1].eval(), args, ["frame_tokens", "joints", "joint_ids", "positions"], "head", dynamic,
+            path, weights)
 
 
 def quantize_int8(source: Path, target: Path) -> None:
@@ -106,23 +110,29 @@ def quantize_int8(source: Path, target: Path) -> None:
 
 def export_onnx(model: TactileModel, out_dir: Path, *, int8: bool = False, source: str = "",
                 overwrite: bool = False) -> dict:
-    """Write the graphs and `engine.json` (`source`: the checkpoint's path, "" when there is none) into a new
-    folder that then replaces `out_dir` as a whole; return the manifest. An existing `out_dir` that is neither
-    empty nor an earlier export is replaced only with `overwrite` (else UserError, nothing written)."""
+    """Write the graphs and `engine.json` (`source`: the checkpoint's path, "" when there is none) into `out_dir`,
+    replacing only an earlier export's files there (`onnx_export_folder`); return the manifest. A non-empty
+    `out_dir` that holds no earlier export, or a file of another origin at one of the export's names, needs
+    `overwrite` (else UserError, nothing written)."""
     out_dir = Path(out_dir)
+    files = export_files(int8)
+    stale = check_export_folder(out_dir, export_names(files), overwrite=overwrite)
     weights = weights_sha256(model)
     model = copy.deepcopy(model).float().cpu().eval()
     bake_position_embedding(model)
-    files = {"fp32": {"encoder": "encoder.onnx", "head": "head.onnx"}}
-    if int8:
-        files["int8"] = {part: f"{part}.int8.onnx" for part in ("encoder", "head")}
     manifest = {"config": config_to_dict(model.config), "image_size": model.config.image_size,
                 "tokens": model.frame_token_shape[0], "width": model.frame_token_shape[1],
                 "window": WINDOW, "opset": OPSET, WEIGHTS_KEY: weights, "source": source, "files": files}
-    with replacing_folder(out_dir, overwrite or is_export(out_dir)) as folder:
-        export_encoder(model, folder / files["fp32"]["encoder"], weights)
-        export_head(model, folder / files["fp32"]["head"], weights)
+    with ExitStack() as stack:  # when all are written, each is renamed into place, the first written (engine.json) last
+        def temporary(name: str) -> Path:
+            return stack.enter_context(replacing(out_dir / name))
+
+        temporary(MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+        fp32 = {"encoder": temporary(files["fp32"]["encoder"])}  # each entered as it is written: an error names it
+        export_encoder(model, fp32["encoder"], weights)
+        fp32["head"] = temporary(files["fp32"]["head"])
+        export_head(model, fp32["head"], weights)
         for part, name in files.get("int8", {}).items():
-            quantize_int8(folder / files["fp32"][part], folder / name)
-        (folder / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+            quantize_int8(fp32[part], temporary(name))
+    remove_stale(stale)
     return manifest
