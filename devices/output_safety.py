@@ -57,7 +57,8 @@ def check_output(out: Path, inputs: Iterable[Path | None] = (), overwrite: bool 
     (an existing non-empty one is replaced only with `overwrite`, never when it holds an input). Raises
     UserError (one line); creates nothing. Inputs are every real path they resolve to, the targets of the
     links inside input folders included (`input_paths`), and an output that is a hard link of an input file
-    is that input."""
+    is that input. What interrupted runs left beside the output (in it, for a `folder`) is removed first when their
+    markers prove it (`temporary_files.remove_left_behind`), each named."""
     out = Path(out)
     check_name_lengths(out, temporary=not folder)
     target = out.resolve()
@@ -84,6 +85,8 @@ def check_output(out: Path, inputs: Iterable[Path | None] = (), overwrite: bool 
     elif target.exists() and not overwrite and not own(target):
         raise UserError(f"{out}: exists; pass --overwrite to replace it")
     check_writable(target if folder or whole else target.parent)
+    for place in (target.parent, target) if folder else (target.parent,):
+        remove_left_behind(place)  # before any work, so the lines come before any progress bar
 
 
 def check_outside(out: Path, folders: Iterable[Path]) -> None:
