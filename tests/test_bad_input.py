@@ -43,6 +43,7 @@ def test_unreadable_video(episode_dir):
 
 def test_truncated_fragmented_video_keeps_its_complete_seconds(tmp_path, episode_dir):
     path = episode_dir / "chest.mp4"
+    path.unlink()  # a writer never opens an existing file
     with VideoWriter(path) as writer:
         for i in range(120):
             writer.write(frame_image(0, i, (48, 64)))

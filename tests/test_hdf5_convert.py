@@ -84,6 +84,34 @@ def test_conversion_never_leaves_a_partial_file(episode_dir, tmp_path):
     assert sorted(tmp_path.iterdir()) == [tmp_path / "raw"]  # neither the trajectory nor a temporary file
 
 
+def test_split_json_is_carried_over_listing_only_the_trajectories_written(tmp_path):
+    raw, out = tmp_path / "raw", tmp_path / "h5"
+    for seed, name in enumerate(("Home/a/1", "Home/b/2")):
+        write_episode(raw / name, frames=8, size=(16, 16), seed=seed)
+    listed = {"train": ["Home/a/1.hdf5", "Home/b/2.hdf5"], "val": ["Office/gone/9.hdf5"], "test_seen": [], "test_unseen": []}
+    (raw / "split.json").write_text(json.dumps(listed))
+    wilor = raw / "Home" / "b" / "2" / "wilor_hands.json"
+    wilor.rename(tmp_path / "wilor_hands.json")  # trajectory 2 fails
+    notes = []
+    assert [r.status for r in convert_dataset(raw, out, on_note=notes.append)] == ["converted", "failed"]
+    assert notes == [f"{raw / 'split.json'}: 2 listed trajectory(ies) not in {out} (failed or not found), the first "
+                     f"Home/b/2.hdf5; {out / 'split.json'} lists the other 1"]
+    assert notes[0] in (out / "conversion_report.txt").read_text()
+    assert read_split(out / "split.json") == {"train": [out / "Home/a/1.hdf5"], "val": [], "test_seen": [], "test_unseen": []}
+    (tmp_path / "wilor_hands.json").rename(wilor)
+    assert [r.status for r in convert_dataset(raw, out, skip_existing=True)] == ["skipped", "converted"]
+    assert read_split(out / "split.json")["train"] == [out / "Home/a/1.hdf5", out / "Home/b/2.hdf5"]  # its earlier copy replaced
+    mine = {"train": ["Home/b/2.hdf5"], "val": ["Home/a/1.hdf5"], "test_seen": [], "test_unseen": []}
+    (out / "split.json").write_text(json.dumps(mine))  # not a copy of RAW's: kept
+    convert_dataset(raw, out, skip_existing=True)
+    assert json.loads((out / "split.json").read_text()) == mine
+    wilor.unlink()
+    (raw / "Home" / "a" / "1" / "wilor_hands.json").unlink()
+    notes.clear()
+    assert {r.status for r in convert_dataset(raw, tmp_path / "none", on_note=notes.append)} == {"failed"}
+    assert not (tmp_path / "none" / "split.json").exists() and notes[0].endswith("; split.json not written (it would list none)")
+
+
 @pytest.mark.parametrize("kwargs, message", [
     ({"workers": 0}, "--workers"), ({"compression_level": 12}, "--compression-level"),
 ])

@@ -170,6 +170,7 @@ def test_a_feature_the_data_lacks_a_missing_video_and_an_empty_dataset_are_named
     pq.write_table(pq.read_table(data).drop_columns([fmt.TRACKERS]), data)  # info.json still names it
     (out / "videos" / fmt.VIEW_FEATURES["wrist_right"] / "chunk-000" / "file-000.mp4").unlink()
     short = out / "videos" / fmt.VIEW_FEATURES["wrist_left"] / "chunk-000" / "file-000.mp4"
+    short.unlink()  # a writer never opens an existing file
     with VideoWriter(short, 30, 10, fragmented=False) as writer:  # 2 of the episode's 4 frames
         for i in range(2):
             writer.write(frame_image(1, i, (48, 64)))

@@ -108,34 +108,38 @@ def test_live_rig_to_recording_and_back(tmp_path, fsyncs):
         assert episode.pressure.grids.shape == (written_ticks, 2, 21, 21)
 
 
+def streaming(folder: Path, name: str) -> Path:
+    """Where stream `name` is written until the recording ends (renamed into place then)."""
+    return temporary_path(folder / name)
+
+
 def test_sync_fsyncs_every_file_and_each_new_directory_entry_once(tmp_path, fsyncs):
     folder = (tmp_path / "Lab" / "task" / "take").resolve()
+    hands_file, video, glove_file = (streaming(folder, n) for n in ("wilor_hands.json", "chest.mp4", "jq_pressure.json"))
     writer = RawEpisodeWriter(folder, durable=True)
     hands = (np.zeros((2, 21, 3), np.float32), np.array([True, True]))
     writer.write(EpisodeFrame(images={"ego": frame_picture(0)}, wilor=hands))
     writer.sync()  # the files, then the new folders' entries from the outside in, then the folder's new files
-    assert not (folder / "chest.mp4").exists()  # FFmpeg creates it with x264's first packet, frames later
-    assert [f.path for f in fsyncs] == [folder / "wilor_hands.json", tmp_path.resolve(), folder.parents[1],
-                                        folder.parent, folder]
-    assert fsyncs[0].size == len((folder / "wilor_hands.json").read_bytes()) > 0
+    assert not video.exists()  # FFmpeg creates it with x264's first packet, frames later
+    assert [f.path for f in fsyncs] == [hands_file, tmp_path.resolve(), folder.parents[1], folder.parent, folder]
+    assert fsyncs[0].size == len(hands_file.read_bytes()) > 0
     fsyncs.clear()
     for k in range(1, 40):
         writer.write(EpisodeFrame(images={"ego": frame_picture(k)}, wilor=hands))
     writer.sync()  # the video's file now exists: it, and the folder again for its entry
-    assert [f.path for f in fsyncs] == [folder / "chest.mp4", folder / "wilor_hands.json", folder]
+    assert [f.path for f in fsyncs] == [video, hands_file, folder]
     fsyncs.clear()
     writer.write(EpisodeFrame(images={"ego": frame_picture(40)}, wilor=hands))
     writer.sync()  # no new file: no directory
-    assert [f.path for f in fsyncs] == [folder / "chest.mp4", folder / "wilor_hands.json"]
+    assert [f.path for f in fsyncs] == [video, hands_file]
     fsyncs.clear()
     glove = (np.ones((2, 256), np.uint8), np.array([True, True]), np.zeros((2, 4), np.float32))
     writer.write(EpisodeFrame(images={"ego": frame_picture(41)}, wilor=hands, glove=glove))
     writer.sync()  # a new stream: the folder again
-    assert [f.path for f in fsyncs] == [folder / "chest.mp4", folder / "wilor_hands.json",
-                                        folder / "jq_pressure.json", folder]
+    assert [f.path for f in fsyncs] == [video, hands_file, glove_file, folder]
     fsyncs.clear()
-    writer.close()  # each file after its last bytes, the grids before their rename, the folder after it
-    assert [f.path for f in fsyncs] == [folder / "chest.mp4", folder / "wilor_hands.json", folder / "jq_pressure.json",
+    writer.close()  # each file after its last bytes, the folder after their renames, the grids before theirs, the folder
+    assert [f.path for f in fsyncs] == [video, hands_file, glove_file, folder,
                                         temporary_path(folder / "pressure_grids.npz"), folder]
     assert fsyncs[0].size == (folder / "chest.mp4").stat().st_size
     fsyncs.clear()
@@ -147,7 +151,7 @@ def test_sync_fsyncs_every_file_and_each_new_directory_entry_once(tmp_path, fsyn
 def sync_rounds(fsyncs: list[Fsync], folder: Path) -> list[float]:
     """When each sync round synced wilor_hands.json (every synthetic frame has a row in it; chest.mp4 only
     exists from x264's first packet on)."""
-    return [f.t for f in fsyncs if f.path == folder / "wilor_hands.json"]
+    return [f.t for f in fsyncs if f.path == streaming(folder, "wilor_hands.json")]
 
 
 def test_the_recorder_fsyncs_every_stream_on_its_cadence_on_the_writer_thread(tmp_path, fsyncs):
@@ -171,11 +175,11 @@ def test_the_recorder_fsyncs_every_stream_on_its_cadence_on_the_writer_thread(tm
     gaps = np.diff(rounds)
     assert gaps.min() >= 0.5 and gaps.max() < 0.5 + 0.5, gaps  # never sooner; late by what a loaded CPU delays
     for name in ("chest.mp4", "jq_pressure.json"):  # every stream in every round
-        assert len([f for f in during if f.path == folder / name]) == len(rounds)
-    assert 1 <= len([f for f in during if f.path == folder / "vive_poses.json"]) <= len(rounds)  # from frame 10
+        assert len([f for f in during if f.path == streaming(folder, name)]) == len(rounds)
+    assert 1 <= len([f for f in during if f.path == streaming(folder, "vive_poses.json")]) <= len(rounds)  # frame 10 on
     # stop(): every file once more, after its last bytes, and the grids
     last = {f.path.name: f.size for f in fsyncs[len(during):]}
-    assert all(last[name] == (folder / name).stat().st_size for name in
+    assert all(last[streaming(folder, name).name] == (folder / name).stat().st_size for name in
                ("chest.mp4", "wilor_hands.json", "jq_pressure.json", "vive_poses.json"))
     assert temporary_path(folder / "pressure_grids.npz").name in last and folder.name in last
 
@@ -190,7 +194,7 @@ def wait_until(condition, what: str, timeout_s: float = 20.0) -> None:
 
 def test_the_recorder_syncs_what_waits_even_when_no_frame_comes(tmp_path, fsyncs):
     folder = (tmp_path / "ep").resolve()
-    hands_file = folder / "wilor_hands.json"
+    hands_file = streaming(folder, "wilor_hands.json")
     recorder = Recorder(RecorderConfig(folder, fsync_s=0.3))
     recorder.start()
     for k in range(3):
@@ -240,7 +244,7 @@ def test_fsync_after_every_frame_or_never(tmp_path, fsyncs, fsync_s, rounds):
     assert recorder.counters.written == 6
     close = 1 if fsync_s is not None else 0  # stop() syncs once more, unless never
     assert len(sync_rounds(fsyncs, folder)) == rounds + close
-    assert len([f for f in fsyncs if f.path == folder / "jq_pressure.json"]) == rounds + close
+    assert len([f for f in fsyncs if f.path == streaming(folder, "jq_pressure.json")]) == rounds + close
 
 
 def test_a_failed_fsync_is_a_writer_error(tmp_path, monkeypatch):

@@ -51,6 +51,7 @@ def test_replay_writes_a_recording_the_sdk_reads_back(episode_dir, tmp_path, cap
     assert main(["replay", str(episode_dir), "--rerun", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "Writing the Rerun recording only" in printed and f"rerun     {out}" in printed
+    assert "frames    40 replayed (no video written), 40 with a prediction" in printed and "video     " not in printed
     assert out.is_file() and [p.name for p in out.parent.iterdir()] == ["replay.rrd"]  # renamed into place
     assert len(RrdReader(out).recordings()) == 1
     rows, static = recording_rows(out)

@@ -16,13 +16,19 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--skip-existing", action="store_true",
                         help="leave trajectories this command already converted from the same episode (complete ones: "
                              "they carry its mark)")
-    add_overwrite_argument(parser, "a file at a trajectory's path that is not this command's conversion of that episode")
+    add_overwrite_argument(parser, "a file at a trajectory's path that is not this command's conversion of that episode, "
+                           "or a conversion_report.txt or quality_report.txt in OUT_ROOT that it did not write")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from touchanything.app.sessions.progress_bar import ProgressBar
-    from touchanything.devices.episodes.dataset_conversion import CONVERSION_REPORT, QUALITY_REPORT, convert_dataset
+    from touchanything.devices.episodes.dataset_conversion import (
+        CONVERSION_REPORT,
+        QUALITY_REPORT,
+        convert_dataset,
+        damaged_line,
+    )
 
     bars: list[ProgressBar] = []  # the bar appears once the inputs and outputs were checked (an error is one line)
     frames, failed = [0], [0]
@@ -34,12 +40,14 @@ def run(args: argparse.Namespace) -> int:
         bars[0].update(1)
         if result.status == "failed":
             bars[0].write(f"failed: {result.error}")
+        elif damaged := damaged_line(result):
+            bars[0].write(damaged)
 
     try:
         results = convert_dataset(args.raw_root, args.out_root, args.workers, args.compression_level,
                                   args.skip_existing, on_result=progress,
                                   on_start=lambda total: bars.append(ProgressBar(total=total, unit="traj", desc="convert")),
-                                  overwrite=args.overwrite)
+                                  overwrite=args.overwrite, on_note=lambda line: bars[0].write(line))
     finally:
         for bar in bars:
             bar.close()
@@ -47,4 +55,5 @@ def run(args: argparse.Namespace) -> int:
     print(  # the report's summary line: the same numbers, labelled wall time and per worker
         report.read_text().splitlines()[0])
     print(f"reports: {report}, {args.out_root / QUALITY_REPORT}")
+    # a damaged trajectory holds what its episode gave, the rest marked invalid or cut: a faithful output (exit 0)
     return 1 if any(r.status == "failed" for r in results) else 0

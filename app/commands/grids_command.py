@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from touchanything.devices.errors import DataError, require_finite_positive
-from touchanything.devices.output_safety import check_output, named
+from touchanything.devices.output_safety import add_overwrite_argument, check_output, named
 from touchanything.devices.snapshot import HANDS
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import TactileConfig
@@ -29,20 +29,24 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="interpolate a broken display column from its neighbours (repeatable; default: none)")
     parser.add_argument("--min-scale", type=float, default=TactileConfig.min_scale,
                         help="smallest normalisation divisor in raw units (default 60: sensor noise stays below the contact threshold)")
+    add_overwrite_argument(parser, "a pressure_grids.npz that touchanything did not write (an official episode's, a copy)")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Every episode is tried; one that cannot be computed is named on stderr, its grids left as they were,
-    and the exit status is 1."""
+    and the exit status is 1. Glove samples left out of grids that were computed (malformed lines, non-finite or
+    out-of-range values) are named, one line per episode; the exit status stays 0."""
+    from touchanything.devices.episodes.episode_streams import read_glove
     from touchanything.devices.episodes.episode_writer import write_grids_from_glove
-    from touchanything.devices.episodes.raw_episode import GLOVE_FILE, GRIDS_FILE
+    from touchanything.devices.episodes.raw_episode import GLOVE_FILE, GRIDS_FILE, episode_file
 
     require_finite_positive("--min-scale", args.min_scale)
     layout = TactileLayout.from_dir(args.layout) if args.layout else TactileLayout.default()
     config = TactileConfig(broken_columns=tuple(args.repair_column), min_scale=args.min_scale)
     for folder in args.episodes:  # every output checked before any work
-        check_output(folder / GRIDS_FILE, (folder / GLOVE_FILE, args.layout), own=named(GRIDS_FILE))
+        check_output(folder / GRIDS_FILE, (episode_file(folder, GLOVE_FILE), args.layout), args.overwrite,
+                     own=named(GRIDS_FILE))
     failed = 0
     for folder in args.episodes:
         try:
@@ -54,4 +58,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{folder}: {len(grids.grids)} frames; baseline corrected left {grids.baseline_applied[0]}, "
               f"right {grids.baseline_applied[1]}; tactile max {grids.tactile_max.round(1).tolist()}, "
               f"bend max {grids.bend_max.round(1).tolist()}")
+        glove = episode_file(folder, GLOVE_FILE)
+        if skipped := read_glove(glove)[0].skipped():
+            print(f"{glove}: {skipped}")
     return 1 if failed else 0

@@ -11,8 +11,8 @@ from touchanything.devices.output_safety import add_overwrite_argument
 def add_parser(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser("pose", help="estimate the hands in a video (bare hands) into a wilor_hands.json file")
     parser.add_argument("video", type=Path, help="any video file PyAV reads")
-    parser.add_argument("--out", type=Path, required=True, help="the file to write (e.g. wilor_hands.json beside the "
-                                                                "episode's chest.mp4)")
+    parser.add_argument("--out", type=Path, required=True, help="the .json file to write (e.g. wilor_hands.json beside "
+                                                                "the episode's chest.mp4)")
     parser.add_argument("--mirror", action="store_true", help="the video is mirrored (a selfie webcam): swap the "
                                                               "left and right labels")
     add_overwrite_argument(parser, "--out")

@@ -23,10 +23,14 @@ def write_pose_file(video: Path, out: Path, config: CameraPoseConfig = CameraPos
                     progress: Callable[[int, int], None] = lambda done, total: None) -> ReplaySummary:
     """Estimate the hands in every frame of `video` and write them to `out`; returns the frame count, the
     frames with each hand and the estimator's times (a ReplaySummary's pose fields). `progress(done, total)`
-    is called once every input was checked (done 0), then after each frame."""
+    is called once every input was checked (done 0), then after each frame. UserError before any work for an
+    `out` that is not a .json file (the format's suffix: a reader would take a `.mp4` name for a video)."""
     video, out = Path(video), Path(out)
     if video.is_dir():
         raise UserError(f"{video}: a folder; pass a video file (an episode's chest.mp4, for example)")
+    if out.suffix.lower() != ".json":
+        raise UserError(f"{out}: the pose file is JSON lines and must be a .json file (wilor_hands.json beside an episode's "
+                        "chest.mp4)")
     check_output(out, (video,), overwrite)
     with open_video_episode(video) as episode:
         source = ReplaySource(episode, ReplayConfig(speed=None, views=("ego",), pose_source="camera", camera_pose=config))

@@ -29,7 +29,8 @@ from touchanything.viz.rerun_recording import RerunRecording
 
 @dataclass
 class ReplaySummary:
-    """frames written; predicted: frames with a prediction for at least one hand; no_pose: frames the engine
+    """frames replayed; video: they were written into a comparison video (else only replayed: into a Rerun
+    recording, or nowhere); predicted: frames with a prediction for at least one hand; no_pose: frames the engine
     answered without a valid hand pose to predict from (no contact in the metrics); metrics: cumulative
     official metrics of the last frame's facts (None without ground truth; a value None where undefined);
     latency_ms / step_ms: per-prediction latency and engine step times; hands: frames with a valid pose per hand
@@ -38,6 +39,7 @@ class ReplaySummary:
     measured contact lamps agree, and those where both were known (the hand predicted and measured)."""
 
     frames: int = 0
+    video: bool = False
     predicted: int = 0
     no_pose: int = 0
     metrics: Metrics | None = None
@@ -81,7 +83,8 @@ class ReplaySummary:
 
     def lines(self) -> list[str]:
         no_pose = f", {self.no_pose} without a hand pose (nothing predicted)" if self.no_pose else ""
-        out = [f"frames    {self.frames} written, {self.predicted} with a prediction{no_pose}", self.pose_line()]
+        done = "written" if self.video else "replayed (no video written)"
+        out = [f"frames    {self.frames} {done}, {self.predicted} with a prediction{no_pose}", self.pose_line()]
         if self.metrics is None:
             out.append("metrics   n/a (the episode has no ground-truth pressure)")
         elif not self.predicted:
@@ -189,7 +192,7 @@ def export_replay(sources: list[ReplaySource], engine: StreamingEngine, out: Pat
     maps, each episode's footer (`footers`: the engine setting's name, which episode) first in its footer, and
     the Rerun recording when given (one source); return each episode's summary (the engine starts afresh per
     episode)."""
-    summaries = [ReplaySummary() for _ in sources]
+    summaries = [ReplaySummary(video=out is not None) for _ in sources]
     footers = footers or [""] * len(sources)
     if out is None:
         for source, summary in zip(sources, summaries):

@@ -1,18 +1,18 @@
 """Convert a whole raw EgoTouch root to HDF5 with worker processes, and write the two reports."""
 from __future__ import annotations
 
-import shutil
+import os
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-from touchanything.devices.episodes.dataset_split import SPLIT_FILE
+from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split, write_split
 from touchanything.devices.episodes.episode_loader import find_raw_episodes
 from touchanything.devices.episodes.hdf5_convert import ConversionResult, convert_trajectory, output_path, source_name
 from touchanything.devices.episodes.hdf5_output import written_from
-from touchanything.devices.errors import UserError, failure_line
-from touchanything.devices.output_safety import check_outside, check_report_folder, replacing, write_text
+from touchanything.devices.errors import DataError, UserError, failure_line
+from touchanything.devices.output_safety import check_outside, check_report_folder, write_text
 
 CONVERSION_REPORT = "conversion_report.txt"
 QUALITY_REPORT = "quality_report.txt"
@@ -21,11 +21,14 @@ QUALITY_REPORT = "quality_report.txt"
 def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compression_level: int = 4,
                     skip_existing: bool = False,
                     on_result: Callable[[ConversionResult], None] | None = None,
-                    on_start: Callable[[int], None] | None = None, overwrite: bool = False) -> list[ConversionResult]:
+                    on_start: Callable[[int], None] | None = None, overwrite: bool = False,
+                    on_note: Callable[[str], None] | None = None) -> list[ConversionResult]:
     """Convert every trajectory under `raw_root`; one bad trajectory never stops the others. `on_start(n)`:
-    once the inputs and outputs were checked, with the number of trajectories found. An existing trajectory is
+    once the inputs and outputs were checked, with the number of trajectories found; `on_note(line)`: what the
+    carried-over `split.json` left out (`carried_split`), before it is written. An existing trajectory is
     replaced (or with `skip_existing` left alone) only when this project converted it from the same episode
-    (`hdf5_output`'s mark); anything else at a target path is refused before any work unless `overwrite`."""
+    (`hdf5_output`'s mark), a report only when this project wrote it (`output_safety.named`); anything else at a target path is refused
+    before any work unless `overwrite`. RAW's `split.json` is carried over listing only the trajectories OUT holds."""
     raw_root, out_root = Path(raw_root), Path(out_root)
     if not raw_root.is_dir():
         raise UserError(f"{raw_root}: raw root folder not found")
@@ -37,7 +40,7 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
     if not folders:
         raise UserError(f"{raw_root}: no trajectories found (folders holding chest.mp4, up to 4 levels deep)")
     check_outside(out_root, folders)
-    check_report_folder(out_root, (CONVERSION_REPORT, QUALITY_REPORT), (raw_root,))
+    check_report_folder(out_root, (CONVERSION_REPORT, QUALITY_REPORT), (raw_root,), overwrite=overwrite)
     results, todo = plan(folders, raw_root, out_root, skip_existing, overwrite)
     on_start and on_start(len(folders))
     started = time.perf_counter()
@@ -47,8 +50,11 @@ def convert_dataset(raw_root: Path, out_root: Path, workers: int = 1, compressio
         results.append(result)
         on_result and on_result(result)
     results.sort(key=lambda r: str(r.source))
-    write_reports(out_root, results, time.perf_counter() - started)
-    copy_split(raw_root, out_root)
+    split, note = carried_split(raw_root, out_root, results)
+    note and on_note and on_note(note)
+    write_reports(out_root, results, time.perf_counter() - started, note)
+    if split:
+        write_split(out_root / SPLIT_FILE, split)
     return results
 
 
@@ -74,13 +80,48 @@ def plan(folders: list[Path], raw_root: Path, out_root: Path, skip_existing: boo
     return skipped, todo
 
 
-def copy_split(raw_root: Path, out_root: Path) -> None:
-    """A `split.json` shipped with the raw data moves into the HDF5 root (as the official release does);
-    an existing one there is kept."""
+def carried_split(raw_root: Path, out_root: Path,
+                  results: list[ConversionResult]) -> tuple[dict[str, list[Path]] | None, str | None]:
+    """A `split.json` shipped with the raw data moves into the HDF5 root (as the official release does), listing
+    only the trajectories this run converted or found converted (`skipped`). Returns (that split, or None when
+    there is none to write: none shipped, it would list none, or OUT holds one that is not an earlier carried
+    copy (kept); what it left out as one line, or None)."""
     source, target = raw_root / SPLIT_FILE, out_root / SPLIT_FILE
-    if source.is_file() and not target.exists():
-        with replacing(target) as temporary:
-            shutil.copyfile(source, temporary)
+    if not source.is_file():
+        return None, None
+    try:
+        listed = read_split(source)
+    except DataError as exc:
+        return None, f"{exc}; not carried over"
+    if target.exists() and not _carried_before(target, listed, raw_root, out_root):
+        return None, None
+    held = {r.output.relative_to(out_root) for r in results if r.status != "failed"}
+    places = {key: [_under(e, raw_root) for e in listed[key]] for key in SPLIT_KEYS}
+    split = {key: [out_root / p for p in places[key] if p in held] for key in SPLIT_KEYS}
+    left_out = [p or e for key in SPLIT_KEYS for p, e in zip(places[key], listed[key]) if p not in held]
+    kept = sum(map(len, split.values()))
+    if not left_out:
+        return split, None
+    fate = f"{target} lists the other {kept}" if kept else f"{SPLIT_FILE} not written (it would list none)"
+    return split if kept else None, (f"{source}: {len(left_out)} listed trajectory(ies) not in {out_root} (failed or "
+                                     f"not found), the first {left_out[0]}; {fate}")
+
+
+def _carried_before(target: Path, listed: dict[str, list[Path]], raw_root: Path, out_root: Path) -> bool:
+    """OUT's split file is an earlier carried copy of RAW's: a plain file, each of its lists part of RAW's same list."""
+    if not target.is_file():
+        return False
+    try:
+        earlier = read_split(target)
+    except DataError:
+        return False
+    return all({_under(e, out_root) for e in earlier[key]} <= {_under(e, raw_root) for e in listed[key]} for key in SPLIT_KEYS)
+
+
+def _under(entry: Path, root: Path) -> Path | None:
+    """A split entry's place under `root` (None when it lies elsewhere)."""
+    relative = Path(os.path.relpath(entry, root))
+    return None if relative.parts[:1] == ("..",) else relative
 
 
 def _run(todo: list[tuple[Path, Path, str]], workers: int, level: int):
@@ -107,21 +148,30 @@ def summary_line(results: list[ConversionResult], wall_seconds: float) -> str:
     """Counts, then the speed twice, each labelled: frames per second of wall time (what the user waited) and
     per worker (frames over the work time summed over trajectories; lower with several workers)."""
     counts = {s: sum(r.status == s for r in results) for s in ("converted", "skipped", "failed")}
+    damaged = sum(r.damage is not None for r in results)
     frames = sum(r.frames for r in results)
     work = sum(r.seconds for r in results)
-    return (f"converted {counts['converted']}, skipped {counts['skipped']}, failed {counts['failed']}; "
+    return (f"converted {counts['converted']}{f' ({damaged} damaged)' if damaged else ''}, skipped {counts['skipped']}, "
+            f"failed {counts['failed']}; "
             f"{frames} frames in {wall_seconds:.1f} s wall time ({frames / wall_seconds if wall_seconds else 0:.1f} "
             f"frames/s), {work:.1f} s of work summed over trajectories ({frames / work if work else 0:.1f} frames/s "
             "per worker)")
 
 
-def write_reports(out_root: Path, results: list[ConversionResult], wall_seconds: float) -> None:
-    """`conversion_report.txt` (`summary_line`, then the status per trajectory) and `quality_report.txt`
-    (problems, quality; ratios the raw folder does not give read "not measured")."""
+def damaged_line(result: ConversionResult) -> str | None:
+    """`damaged: OUT/…/001.hdf5: <what it lacks>` for a trajectory converted from an episode that is not whole."""
+    return f"damaged: {result.output}: {result.damage}" if result.damage else None
+
+
+def write_reports(out_root: Path, results: list[ConversionResult], wall_seconds: float, split_note: str | None) -> None:
+    """`conversion_report.txt` (`summary_line`, then the status per trajectory, each damaged one's
+    `damaged_line`, and what `split.json` left out) and `quality_report.txt` (problems and
+    quality; ratios the raw folder does not give read "not measured")."""
     lines = [summary_line(results, wall_seconds), ""]
     for r in results:
         detail = r.error if r.status == "failed" else f"{r.frames} frames, {r.seconds:.1f} s of work"
         lines.append(f"{r.status:9s} {r.source} -> {r.output}: {detail}")
+    lines += [line for r in results if (line := damaged_line(r))] + ([split_note] if split_note else [])
     write_text(out_root / CONVERSION_REPORT, "\n".join(lines) + "\n")
     quality = []
     for r in results:

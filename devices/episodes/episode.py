@@ -80,3 +80,24 @@ def align_note(lengths: dict[str, int], frames: int) -> str | None:
         return None
     listed = ", ".join(f"{name} {n}" for name, n in lengths.items())
     return f"frame counts differ ({listed}); aligned to {frames} frames"
+
+
+SHOWN_PER_STREAM = 3
+"""Problems of one stream quoted in an episode's damage line (the others are counted)."""
+
+
+def problems_in_brief(problems: list[str], where: Path) -> list[str]:
+    """An episode's problem lines as one part per stream they name, without the episode's path `where`:
+    "wilor_hands.json: line 5: invalid JSON …", or "wilor_hands.json (3 problems): line 5: … / line 9: … / 1 more"."""
+    streams: dict[str, list[str]] = {}
+    for problem in problems:
+        text = problem[len(str(where)):].lstrip("/: ") if problem.startswith((f"{where}/", f"{where}: ")) else problem
+        stream, _, what = text.partition(": ")
+        streams.setdefault(stream, []).append(what)
+    parts = []
+    for stream, whats in streams.items():
+        more = len(whats) - SHOWN_PER_STREAM
+        quoted = " / ".join([w for w in whats[:SHOWN_PER_STREAM] if w] + ([f"{more} more"] if more > 0 else []))
+        name = stream if len(whats) == 1 else f"{stream} ({len(whats)} problems)"
+        parts.append(f"{name}: {quoted}" if quoted else name)
+    return parts

@@ -9,12 +9,12 @@ Schemas (one object per line; the line number is the frame index):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.episodes.jsonl import FieldProblems, read_jsonl_lines
+from touchanything.devices.episodes.jsonl import FieldProblems, read_jsonl_lines, where
 from touchanything.devices.hand_pose import JOINTS_PER_HAND, hand_from_json
 from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 
@@ -55,12 +55,15 @@ class TrackerStream:
 
 @dataclass
 class GloveStream:
-    """raw: (N, 2, 256) uint8; present: (N, 2) bool; quat_wxyz: (N, 2, 4) float32; timestamps_us: (N,)."""
+    """raw: (N, 2, 256) uint8; present: (N, 2) bool; quat_wxyz: (N, 2, 4) float32; timestamps_us: (N,).
+    broken: the numbers of the lines that are not a JSON object; dropped: the hand samples left out, by field."""
 
     raw: np.ndarray
     present: np.ndarray
     quat_wxyz: np.ndarray
     timestamps_us: np.ndarray | None
+    broken: list[int] = field(default_factory=list)
+    dropped: FieldProblems | None = None
 
     def fit(self, frames: int) -> GloveStream:
         """Cut or pad (absent, identity quaternion) to `frames`."""
@@ -68,7 +71,18 @@ class GloveStream:
         quat[np.all(quat == 0, axis=-1)] = IDENTITY_WXYZ
         stamps = self.timestamps_us
         return GloveStream(fit_length(self.raw, frames), fit_length(self.present, frames, False), quat,
-                           None if stamps is None or len(stamps) < frames else stamps[:frames])
+                           None if stamps is None or len(stamps) < frames else stamps[:frames], self.broken, self.dropped)
+
+    def skipped(self) -> str | None:
+        """What no computation from this stream uses, as one line: `N glove samples skipped: malformed lines (2
+        lines, first line 5); left: … (line 4)` (a broken line counts as one sample); None when nothing was."""
+        dropped = self.dropped.count() if self.dropped else 0
+        if not self.broken and not dropped:
+            return None
+        reasons = [f"malformed lines ({where(self.broken)})"] if self.broken else []
+        reasons += self.dropped.lines(path=False) if self.dropped else []
+        count = len(self.broken) + dropped
+        return f"{count} glove sample{'s' if count != 1 else ''} skipped: {'; '.join(reasons)}"
 
 
 def _hand(value: object) -> tuple[np.ndarray, bool]:
@@ -81,7 +95,7 @@ def _hand(value: object) -> tuple[np.ndarray, bool]:
 
 def read_hands(path: Path) -> tuple[HandStream, list[str]]:
     """Read a WiLoR or Rokoko stream; a hand failing the official validity rule is invalid (zeros)."""
-    rows, line_numbers, problems = read_jsonl_lines(path)
+    rows, line_numbers, problems, _ = read_jsonl_lines(path)
     joints = np.zeros((len(rows), 2, JOINTS_PER_HAND, 3), np.float32)
     valid = np.zeros((len(rows), 2), bool)
     bad = FieldProblems(path)
@@ -112,7 +126,7 @@ def _floats(value: object, size: int) -> np.ndarray | None:
 
 def read_trackers(path: Path) -> tuple[TrackerStream, list[str]]:
     """Read `vive_poses.json`; a role that is missing or malformed gives 7 zeros and valid = False."""
-    rows, line_numbers, problems = read_jsonl_lines(path)
+    rows, line_numbers, problems, _ = read_jsonl_lines(path)
     poses = np.zeros((len(rows), len(TRACKER_ROLES), 7), np.float32)
     valid = np.zeros((len(rows), len(TRACKER_ROLES)), bool)
     bad = FieldProblems(path)
@@ -159,13 +173,13 @@ def _glove_sample(entry: object) -> tuple[np.ndarray, np.ndarray] | tuple[str, s
 
 def read_glove(path: Path) -> tuple[GloveStream, list[str]]:
     """Read `jq_pressure.json`; a malformed hand sample counts as absent in that frame."""
-    rows, line_numbers, problems = read_jsonl_lines(path)
+    rows, line_numbers, problems, broken = read_jsonl_lines(path)
     n = len(rows)
     raw = np.zeros((n, 2, 256), np.uint8)
     present = np.zeros((n, 2), bool)
     quat = np.tile(np.array(IDENTITY_WXYZ, np.float32), (n, 2, 1))
     stamps = np.full(n, -1, np.int64)
-    bad = FieldProblems(path)
+    bad, dropped = FieldProblems(path), FieldProblems(path)
     for i, row in enumerate(rows):
         row = row or {}
         stamp = row.get("timestamp_us")
@@ -178,12 +192,12 @@ def read_glove(path: Path) -> tuple[GloveStream, list[str]]:
                 continue
             sample = _glove_sample(row[hand])
             if isinstance(sample[0], str):
-                bad.add(hand + sample[0], line_numbers[i], sample[1])
+                dropped.add(hand + sample[0], line_numbers[i], sample[1])
                 continue
             raw[i, h], quat[i, h] = sample
             present[i, h] = True
     timestamps = stamps if n and np.all(stamps >= 0) else None
-    return GloveStream(raw, present, quat, timestamps), problems + bad.lines()
+    return GloveStream(raw, present, quat, timestamps, broken, dropped), problems + bad.lines() + dropped.lines()
 
 
 def glove_row(frame_index: int, timestamp_us: int, raw: np.ndarray, present: np.ndarray,

@@ -13,7 +13,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.episodes.episode import Episode, problems_in_brief
 from touchanything.devices.episodes.episode_files import MAXIMA_KEYS, read_masks, read_quality
 from touchanything.devices.episodes.hdf5_episode import (
     GRID_KEYS,
@@ -26,6 +26,7 @@ from touchanything.devices.episodes.hdf5_episode import (
 )
 from touchanything.devices.episodes.hdf5_output import hdf5_output
 from touchanything.devices.episodes.raw_episode import (
+    GRIDS_FILE,
     MASKS_FILE,
     QUALITY_FILE,
     REQUIRED_FILES,
@@ -42,7 +43,8 @@ DUPLICATE_ISSUE_RATIO = 0.20
 
 @dataclass
 class ConversionResult:
-    """status: converted | skipped | failed."""
+    """status: converted | skipped | failed. damage: what a converted trajectory lacks or left out, one line (None
+    when the episode was whole): the trajectory holds what could be read, the rest marked invalid or cut."""
 
     source: Path
     output: Path
@@ -52,6 +54,7 @@ class ConversionResult:
     problems: list[str] = field(default_factory=list)
     error: str | None = None
     quality: dict = field(default_factory=dict)
+    damage: str | None = None
 
 
 def output_path(folder: Path, raw_root: Path, out_root: Path) -> Path:
@@ -67,9 +70,9 @@ def _gzip(level: int) -> dict:
     return {"compression": "gzip", "compression_opts": level} if level > 0 else {}
 
 
-def _write_images(file: h5py.File, episode: Episode, level: int) -> int:
-    """Stream every view into its dataset; returns the number of frames all views could decode."""
-    decoded = []
+def _write_images(file: h5py.File, episode: Episode, level: int) -> dict[str, int]:
+    """Stream every view into its dataset, cut to the frames all views could decode; returns how many each did."""
+    decoded = {}
     for view, key in IMAGE_KEYS.items():
         source = episode.views[view]
         shape = (episode.num_frames, source.height, source.width, 3)
@@ -79,11 +82,10 @@ def _write_images(file: h5py.File, episode: Episode, level: int) -> int:
         while count < episode.num_frames and (image := source.read(count)) is not None:
             data[count] = image
             count += 1
-        decoded.append(count)
-    frames = min(decoded)
+        decoded[view] = count
     for key in IMAGE_KEYS.values():
-        file[key].resize(frames, axis=0)
-    return frames
+        file[key].resize(min(decoded.values()), axis=0)
+    return decoded
 
 
 def _write_streams(file: h5py.File, episode: Episode, frames: int, level: int) -> None:
@@ -177,7 +179,8 @@ def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4,
                 raise DataError(folder, None, f"cannot convert: unreadable {', '.join(unreadable) or 'frames (0 frames)'}")
             result.quality = _quality(episode, result.problems)
             with hdf5_output(Path(out_path), CONVERTER, source or Path(folder).name) as file:
-                frames = _write_images(file, episode, compression_level)
+                decoded = _write_images(file, episode, compression_level)
+                frames = min(decoded.values())
                 if frames == 0:  # a trajectory of no frame is not one (its readers refuse it)
                     raise DataError(folder, None, "cannot convert: the videos decode no frame")
                 if frames < episode.num_frames:
@@ -187,6 +190,7 @@ def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4,
                 _write_attrs(file, episode, frames, result.quality)
         result.status, result.frames = "converted", frames
         result.quality["wilor_valid_ratio"] = _pose_ratio(episode, frames)
+        result.damage = damage(episode, decoded, result.problems)
     except Exception as exc:  # noqa: BLE001 - any failure of one trajectory (a library error on damaged
         # bytes included) is that trajectory's result; the batch goes on
         result.error = failure_line(folder, exc)
@@ -197,3 +201,27 @@ def convert_trajectory(folder: Path, out_path: Path, compression_level: int = 4,
 def _pose_ratio(episode: Episode, frames: int) -> float:
     """Share of frames with at least one valid WiLoR hand."""
     return float(episode.wilor.valid[:frames].any(axis=1).mean()) if frames else 0.0
+
+
+def damage(episode: Episode, decoded: dict[str, int], problems: list[str]) -> str | None:
+    """What the trajectory converted from `episode` lacks, as one line (None when nothing), parts separated by " | ":
+    the frames it holds of the longest video's (`6 of 40 frames (chest.mp4: 9 frames, 6 decode)`; the folder's own
+    problems, the frame counts, then go unsaid) and the problems by stream (`episode.problems_in_brief`)."""
+    frames, longest = min(decoded.values()), max(source.num_frames for source in episode.views.values())
+    parts = []
+    if frames < longest:
+        parts.append(f"{frames} of {longest} frames ({', '.join(_short_sources(episode, decoded, longest))})")
+        problems = [p for p in problems if not p.startswith(f"{episode.path}: ")]
+    return " | ".join(parts + problems_in_brief(problems, episode.path)) or None
+
+
+def _short_sources(episode: Episode, decoded: dict[str, int], longest: int) -> list[str]:
+    """The videos (and pressure grids) that end before `longest` frames, each with its count."""
+    short = []
+    for view, source in episode.views.items():
+        if source.num_frames < longest or decoded[view] < episode.num_frames:
+            read = f", {decoded[view]} decode" if decoded[view] < episode.num_frames else ""
+            short.append(f"{VIDEO_FILES[view]}: {source.num_frames} frames{read}")
+    if min(source.num_frames for source in episode.views.values()) > episode.num_frames:
+        short.append(f"{GRIDS_FILE}: {episode.num_frames} frames")
+    return short

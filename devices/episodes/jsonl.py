@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import NamedTuple
 
 from touchanything.devices.errors import DataError, describe
 
@@ -24,9 +25,11 @@ def _frame_index(row: dict | None) -> int | None:
     return value if isinstance(value, int) and not isinstance(value, bool) else None
 
 
-def _parse(path: Path) -> tuple[list[dict | None], list[str]]:
-    """One row per line (None for blank or broken lines) and the problems found, one line each."""
+def _parse(path: Path) -> tuple[list[dict | None], list[int], list[str]]:
+    """One row per line (None for blank or broken lines), the numbers of the broken lines (not a JSON object) and
+    the problems found, one line each."""
     rows: list[dict | None] = []
+    broken: list[int] = []
     problems: list[str] = []
     try:
         handle = open(path, "rb")
@@ -50,13 +53,15 @@ def _parse(path: Path) -> tuple[list[dict | None], list[str]]:
             reason = exc.msg if isinstance(exc, json.JSONDecodeError) else (
                 "nested too deeply" if isinstance(exc, RecursionError) else "not UTF-8 text")
             problems.append(describe(path, f"line {number}", f"invalid JSON ({reason}); frame left empty"))
+            broken.append(number)
             rows.append(None)
             continue
         if not isinstance(obj, dict):
             problems.append(describe(path, f"line {number}", "not a JSON object; frame left empty"))
+            broken.append(number)
             obj = None
         rows.append(obj)
-    return rows, problems
+    return rows, broken, problems
 
 
 def _trusted(indices: list[int | None], i: int) -> bool:
@@ -72,15 +77,25 @@ def _trusted(indices: list[int | None], i: int) -> bool:
     return False
 
 
+class JsonLines(NamedTuple):
+    """A JSON-lines file read by frame: rows (None for blank, broken or missing lines), each frame's line number in
+    the file (0 where no line is), the problems found (one line each) and the numbers of the broken lines."""
+
+    rows: list[dict | None]
+    line_numbers: list[int]
+    problems: list[str]
+    broken: list[int]
+
+
 def read_jsonl(path: Path) -> tuple[list[dict | None], list[str]]:
     """Rows by frame (None for blank, broken or missing lines) and the problems found, one line each."""
-    rows, _, problems = read_jsonl_lines(path)
-    return rows, problems
+    found = read_jsonl_lines(path)
+    return found.rows, found.problems
 
 
-def read_jsonl_lines(path: Path) -> tuple[list[dict | None], list[int], list[str]]:
-    """`read_jsonl` plus each frame's line number in the file (for problem lines; 0 where no line is)."""
-    lines, problems = _parse(path)
+def read_jsonl_lines(path: Path) -> JsonLines:
+    """`read_jsonl` plus each frame's line number and the broken lines (for problem lines)."""
+    lines, broken, problems = _parse(path)
     indices = [_frame_index(row) for row in lines]
     frames: dict[int, dict | None] = {}
     numbers: dict[int, int] = {}
@@ -104,12 +119,17 @@ def read_jsonl_lines(path: Path) -> tuple[list[dict | None], list[int], list[str
                                      "line ignored"))
         frame += 1
     count = max(frames, default=-1) + 1
-    return [frames.get(i) for i in range(count)], [numbers.get(i, 0) for i in range(count)], problems
+    return JsonLines([frames.get(i) for i in range(count)], [numbers.get(i, 0) for i in range(count)], problems, broken)
 
 
 def json_line(row: dict) -> str:
     """One compact JSON line, newline included."""
     return json.dumps(row, separators=(",", ":")) + "\n"
+
+
+def where(numbers: list[int]) -> str:
+    """`line 4`, or `3 lines, first line 4`."""
+    return f"line {numbers[0]}" if len(numbers) == 1 else f"{len(numbers)} lines, first line {numbers[0]}"
 
 
 class FieldProblems:
@@ -122,9 +142,11 @@ class FieldProblems:
     def add(self, field: str, line: int, what: str) -> None:
         self._lines.setdefault(field, (what, []))[1].append(line)
 
-    def lines(self) -> list[str]:
-        out = []
-        for field, (what, numbers) in self._lines.items():
-            where = f"line {numbers[0]}" if len(numbers) == 1 else f"{len(numbers)} lines, first line {numbers[0]}"
-            out.append(describe(self.path, field, f"{what} ({where})"))
-        return out
+    def count(self) -> int:
+        """How many lines were added, all fields together."""
+        return sum(len(numbers) for _, numbers in self._lines.values())
+
+    def lines(self, path: bool = True) -> list[str]:
+        """One line per field, the first line's `what` and where (`path`: the file named first)."""
+        return [describe(self.path, field, f"{what} ({where(numbers)})") if path else f"{field}: {what} ({where(numbers)})"
+                for field, (what, numbers) in self._lines.items()]

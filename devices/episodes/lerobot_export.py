@@ -17,15 +17,12 @@ import numpy as np
 
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
-from touchanything.devices.episodes.episode import Episode
+from touchanything.devices.episodes.episode import Episode, problems_in_brief
 from touchanything.devices.episodes.episode_loader import find_empty_folders, find_hdf5_files, find_raw_episodes, is_hdf5_path, open_episode
 from touchanything.devices.episodes.lerobot_writer import LeRobotWriter
 from touchanything.devices.errors import DataError, UserError
 from touchanything.devices.output_safety import replacing_folder
 from touchanything.devices.tactile_layout import TactileLayout
-
-SHOWN_PER_STREAM = 3
-"""Problems of one stream quoted in an episode's line (the others are counted)."""
 
 
 @dataclass
@@ -51,23 +48,6 @@ def source_episodes(root: Path) -> list[Path]:
 def task_text(task: str) -> str:
     """A task id as LeRobot task text: "slide_box_cardboard" → "slide box cardboard"."""
     return task.replace("_", " ").strip() or "unknown task"
-
-
-def problems_in_brief(problems: list[str], where: Path) -> list[str]:
-    """An episode's problem lines as one part per stream they name, without the episode's path `where`:
-    "wilor_hands.json: line 5: invalid JSON …", or "wilor_hands.json (3 problems): line 5: … / line 9: … / 1 more"."""
-    streams: dict[str, list[str]] = {}
-    for problem in problems:
-        text = problem[len(str(where)):].lstrip("/: ") if problem.startswith((f"{where}/", f"{where}: ")) else problem
-        stream, _, what = text.partition(": ")
-        streams.setdefault(stream, []).append(what)
-    parts = []
-    for stream, whats in streams.items():
-        more = len(whats) - SHOWN_PER_STREAM
-        quoted = " / ".join([w for w in whats[:SHOWN_PER_STREAM] if w] + ([f"{more} more"] if more > 0 else []))
-        name = stream if len(whats) == 1 else f"{stream} ({len(whats)} problems)"
-        parts.append(f"{name}: {quoted}" if quoted else name)
-    return parts
 
 
 def damage_line(path: Path, episode: Episode, filled: dict[str, int]) -> str | None:

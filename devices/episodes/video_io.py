@@ -1,9 +1,11 @@
 """Video files through PyAV: RGB frames in memory, random access by frame index, crash-safe H.264 writing."""
 from __future__ import annotations
 
+import contextlib
+import errno
 import itertools
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from fractions import Fraction
 from pathlib import Path
 
@@ -12,7 +14,7 @@ import cv2
 import numpy as np
 
 from touchanything.devices.errors import DataError
-from touchanything.devices.output_safety import fsync_fd, fsync_path
+from touchanything.devices.output_safety import fsync_fd
 
 MAX_FPS = 240
 """A frame rate outside 1..MAX_FPS (a damaged header: 30/65537 was seen) is not believed: the guessed rate, else
@@ -134,6 +136,67 @@ class VideoReader:
         self.close()
 
 
+class _VideoFile:
+    """The file FFmpeg writes a video into, through PyAV's Python I/O, so that no write error is lost: when FFmpeg
+    writes its own file, the error of the flush that writes the last fragment (at close) is dropped (libavformat
+    62), and a full disk left a cut file behind a successful close. Created by FFmpeg's first write (the
+    encoder's first packet), as a new file (an existing path, a link included, is never opened: EEXIST); every write
+    reaches the OS at once and whole. The first failure — an OSError naming
+    the file, or an interruption (Ctrl-C) that landed in it — is kept in `failure` and answered to FFmpeg as an
+    error code (an exception cannot pass through FFmpeg): `VideoWriter` raises it once FFmpeg returns."""
+
+    def __init__(self, path: Path) -> None:
+        self.path, self.name = path, str(path)
+        self.failure: BaseException | None = None
+        self._fd: int | None = None
+
+    def _call(self, step: Callable[[int], int]) -> int:
+        """`step(fd)` on the file (created first), or a negative error code for FFmpeg, the failure kept."""
+        if self.failure is not None:
+            return -errno.EIO
+        try:
+            if self._fd is None:
+                self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o666)
+            return step(self._fd)
+        except OSError as exc:
+            self.failure = OSError(exc.errno, exc.strerror, self.name)
+            return -(exc.errno or errno.EIO)
+        except BaseException as exc:  # an interruption: raised again by VideoWriter once FFmpeg returns
+            self.failure = exc
+            return -errno.EINTR
+
+    def write(self, data: bytes) -> int:
+        def write_all(fd: int) -> int:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view):]
+            return len(data)
+        return self._call(write_all)
+
+    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
+        return self._call(lambda fd: os.lseek(fd, offset, whence))
+
+    def tell(self) -> int:
+        return self._call(lambda fd: os.lseek(fd, 0, os.SEEK_CUR))
+
+    def sync(self) -> bool:
+        """fsync the file; False when FFmpeg has not created it yet."""
+        if self._fd is None:
+            return False
+        fsync_fd(self._fd, self.path)
+        return True
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def raise_failure(self) -> None:
+        """Raise the kept failure, if any."""
+        if self.failure is not None:
+            raise self.failure from None
+
+
 class VideoWriter:
     """H.264 (libx264, yuv420p) in fragmented MP4: every completed 1 s fragment stays readable after a crash.
 
@@ -141,6 +204,10 @@ class VideoWriter:
     32 KiB in its own buffer, which a killed process loses (a small or still picture loses seconds).
     `sync()` asks the OS to put what it holds on the disk (fsync), so the completed fragments also survive
     a crash of the machine; `close(sync=True)` does it after the last fragment.
+
+    Every error writing the file (a full disk, an I/O error, a quota, a read-only file system, a file-size
+    limit), met while muxing a frame's packets, flushing the encoder or closing the container, is raised as an
+    OSError with its errno and the file's name (`_VideoFile`): a writer that returns wrote the whole video.
     """
 
     def __init__(self, path: Path, fps: int = 30, crf: int = 20, preset: str = "veryfast", fragmented: bool = True,
@@ -154,59 +221,61 @@ class VideoWriter:
         self.fragmented, self.codec_options = fragmented, codec_options or {}
         self._container: av.container.OutputContainer | None = None
         self._stream = None
-        self._sync_fd: int | None = None
+        self._file = _VideoFile(self.path)
         self.frames_written = 0
 
     def _open(self, width: int, height: int) -> None:
         if width % 2 or height % 2:
             raise ValueError(f"H.264 needs even frame sizes, got {width}×{height}")
         options = {"movflags": "frag_keyframe+empty_moov+default_base_moof", "flush_packets": "1"} if self.fragmented else {}
-        self._container = av.open(str(self.path), "w", format="mp4", options=options)
+        self._container = av.open(self._file, "w", format="mp4", options=options)
         self._container.metadata.update(self.metadata)
         self._stream = self._container.add_stream("libx264", rate=self.fps)
         self._stream.width, self._stream.height, self._stream.pix_fmt = width, height, "yuv420p"
         self._stream.options = {"crf": str(self.crf), "preset": self.preset, "g": str(self.fps), **self.codec_options}
+
+    @contextlib.contextmanager
+    def _writing(self) -> Iterator[None]:
+        """Around FFmpeg's work on the file: the file's own failure is raised, in place of the error FFmpeg made
+        of it, or when FFmpeg dropped it."""
+        try:
+            yield
+        except av.error.FFmpegError:
+            self._file.raise_failure()
+            raise
+        self._file.raise_failure()
 
     def write(self, rgb: np.ndarray) -> None:
         """Append one (H, W, 3) uint8 RGB frame."""
         if self._container is None:
             self._open(rgb.shape[1], rgb.shape[0])
         frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(rgb, dtype=np.uint8), format="rgb24")
-        for packet in self._stream.encode(frame):
-            self._container.mux(packet)
+        with self._writing():
+            self._container.mux(self._stream.encode(frame))
         self.frames_written += 1
 
     def sync(self) -> bool:
         """fsync the file: every fragment FFmpeg has handed to the OS is on the disk when this returns (the
-        fragment being encoded is not: it is written when complete). FFmpeg owns the file's descriptor, so
-        this syncs through a read-only one of its own (Linux syncs the file, whichever descriptor names it).
-        False when there is no file yet: FFmpeg creates it with the encoder's first packet, some frames
-        after the first `write`."""
-        if self._container is None:
-            return False
-        if self._sync_fd is None:
-            try:
-                self._sync_fd = os.open(self.path, os.O_RDONLY)
-            except FileNotFoundError:
-                return False
-        fsync_fd(self._sync_fd, self.path)
-        return True
+        fragment being encoded is not: it is written when complete). False when there is no file yet: FFmpeg
+        creates it with the encoder's first packet, some frames after the first `write`."""
+        return self._container is not None and self._file.sync()
 
     def close(self, sync: bool = False) -> None:
-        """Write the last fragment and close the file; `sync`: fsync it after (see `sync()`)."""
+        """Write the last fragment and close the file; `sync`: fsync it after (see `sync()`). The file is closed
+        also when this raises."""
         try:
             if self._container is None:
                 return
-            for packet in self._stream.encode():
-                self._container.mux(packet)
-            self._container.close()
-            self._container = None
+            with self._writing():
+                try:
+                    self._container.mux(self._stream.encode())
+                finally:
+                    container, self._container = self._container, None
+                    container.close()
             if sync:
-                fsync_path(self.path)
+                self._file.sync()
         finally:
-            if self._sync_fd is not None:
-                os.close(self._sync_fd)
-                self._sync_fd = None
+            self._file.close()
 
     def __enter__(self) -> VideoWriter:
         return self
