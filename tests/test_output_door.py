@@ -196,3 +196,13 @@ def test_a_full_disk_is_one_line_before_any_work(case, sources, full_disk, capsy
         assert digest(base) == before and temporaries(base) == []
     finally:
         filler.unlink()
+
+
+def test_a_screenshot_takes_a_free_name_never_a_taken_one(tmp_path):
+    from touchanything.viz.dashboard.dashboard import free_name
+
+    shot = tmp_path / "dashboard_20261128_120000.png"
+    assert free_name(shot) == shot
+    shot.write_text("the user's")
+    (tmp_path / "dashboard_20261128_120000_2.png").symlink_to(tmp_path / "nowhere")  # a dangling link is taken too
+    assert free_name(shot) == tmp_path / "dashboard_20261128_120000_3.png"

@@ -12,6 +12,7 @@ thread (manual callback management), between frames.
 """
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +23,7 @@ import matplotlib
 import numpy as np
 
 from touchanything.devices.errors import UserError
+from touchanything.devices.output_safety import replacing
 from touchanything.devices.rate_meter import RateMeter
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.dashboard.atlas_panel import AtlasPanel
@@ -288,7 +290,7 @@ class Dashboard:
     def request_screenshot(self, path: Path | None = None) -> None:
         """Save the next rendered frame as PNG (default: a timestamped file under the screenshot folder)."""
         if path is None:
-            path = self.config.screenshot_dir / time.strftime("dashboard_%Y%m%d_%H%M%S.png")
+            path = free_name(self.config.screenshot_dir / time.strftime("dashboard_%Y%m%d_%H%M%S.png"))
         self.pending_screenshot = Path(path)
         self.note = f"saving a screenshot: {self.pending_screenshot.name}"
         dpg.output_frame_buffer(callback=self._save_screenshot)
@@ -300,15 +302,25 @@ class Dashboard:
         pixels = rgba.size // 4
         height = pixels // width if width and pixels % width == 0 else height
         image = (np.clip(rgba.reshape(height, -1, 4)[..., :3], 0, 1) * 255).round().astype(np.uint8)
+        encoded, png = cv2.imencode(".png", image[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 9])
         try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            if not cv2.imwrite(str(path), image[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 9]):
-                raise OSError("the image could not be encoded")
-        except OSError as exc:
-            self.note = f"screenshot not saved: {path}: {exc}"
+            if not encoded:
+                raise UserError(f"{path}: the image could not be encoded")
+            with replacing(path) as temporary:
+                temporary.write_bytes(png.tobytes())
+        except UserError as exc:
+            self.note = f"screenshot not saved: {exc}"
             return
         self.saved_screenshots.append(path)
         self.note = f"screenshot saved: {path.name}\nin {path.parent}"  # a long path wraps, never the name
+
+
+def free_name(path: Path) -> Path:
+    """`path`, or `stem_2.png`, `stem_3.png`, … when taken: a screenshot never replaces another file."""
+    candidate, number = Path(path), 2
+    while os.path.lexists(candidate):
+        candidate, number = path.with_name(f"{path.stem}_{number}{path.suffix}"), number + 1
+    return candidate
 
 
 def _noted(*_: object) -> None:
