@@ -44,6 +44,8 @@ KINDS = ("file", "folder", "replaced", "recording")
 WRITTEN_ATTRIBUTE = "user.touchanything"
 WRITTEN_VALUE = b"written"
 _MARKER_BYTES = 4096
+_SAID_ALONE: set[Path] = set()
+"""The leftovers of other PID namespaces already named by this process (each is named once)."""
 """A marker is a few hundred bytes; a larger file of that name is not one."""
 
 
@@ -152,17 +154,6 @@ def unmark(temporary: Path) -> None:
         os.unlink(marker_path(temporary))
 
 
-@contextlib.contextmanager
-def marked(temporary: Path, kind: str) -> Iterator[Path]:
-    """`mark` for the duration of the block; the marker is removed when it ends (the entry renamed into place
-    or removed by the caller)."""
-    mark(temporary, kind)
-    try:
-        yield Path(temporary)
-    finally:
-        unmark(temporary)
-
-
 def read_marker(marker: Path) -> dict | None:
     """The record of a marker, or None when `marker` is not one the project wrote: not a plain file, too large,
     not the JSON record, or naming another entry than its own sibling."""
@@ -235,11 +226,12 @@ def remove_left_behind(folder: Path) -> list[Path]:
         if record["kind"] == "recording":
             continue
         state = owner_state(record)
-        if state == "unknown":
+        if state == "unknown" and marker not in _SAID_ALONE:
+            _SAID_ALONE.add(marker)
             _say(f"left alone {marker.with_name(record['temporary'])}: written by process {record.get('pid')} of "
                  "another PID namespace, which this one cannot see; remove it once that run has ended")
             continue
-        if state == "running":
+        if state in ("running", "unknown"):
             continue
         with contextlib.suppress(OSError):
             if (entry := _clear(marker, record)) is not None:
@@ -249,8 +241,8 @@ def remove_left_behind(folder: Path) -> list[Path]:
 
 
 def recorded_stream(folder: Path, name: str) -> Path | None:
-    """The temporary file of stream `name` of a recording in `folder` that was cut short (its process gone
-    before it renamed its streams into place), or None. When there are several, the newest."""
+    """The temporary file of stream `name` of a recording in `folder` that has not renamed its streams into place
+    (cut short, or still recording), or None. When there are several, the newest marker's."""
     found = [(marker.stat().st_mtime, marker.with_name(record["temporary"]))
              for marker, record in _markers(folder)
              if record["kind"] == "recording" and record.get("name") == name]

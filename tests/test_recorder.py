@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from helpers.simulated_rig import frame_picture, synthetic_snapshot
+from tests.test_convert_safety import tmpfs
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_streams import read_glove, read_hands
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter, write_grids_from_glove
@@ -198,9 +199,7 @@ def test_bad_folders_and_settings_are_user_errors(tmp_path):
 
 @pytest.mark.skipif(os.geteuid() != 0, reason="mounting a tmpfs needs root")
 def test_a_full_disk_is_reported_and_the_frames_said_to_replay_do(tmp_path):
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(disk)], check=True)
+    disk = tmpfs(tmp_path / "disk", "256k")
     try:
         folder = disk / "ep"
         recorder = Recorder(RecorderConfig(folder))
