@@ -21,7 +21,7 @@ from touchanything.devices.episodes.episode_streams import read_glove, read_hand
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter, write_grids_from_glove
 from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.errors import UserError
-from touchanything.devices.rig.recorder import Recorder, RecorderConfig
+from touchanything.devices.rig.recorder import Recorder, RecorderConfig, describe_error
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 from touchanything.devices.snapshot import FPS
 from touchanything.devices.temporary_files import recorded_stream
@@ -259,3 +259,10 @@ def test_a_killed_recording_replays_up_to_its_last_second_and_its_grids_can_be_r
     with open_episode(folder) as episode:
         assert episode.num_frames == frames and episode.pressure.grids.shape == (frames, 2, 21, 21)
         assert not any("missing" in p for p in episode.problems if "pressure_grids" in p)
+
+
+def test_a_writer_error_is_one_line_without_its_type_when_it_is_a_users():
+    assert describe_error(UserError("ep/left.mp4: appeared while the episode was written")) == \
+        "ep/left.mp4: appeared while the episode was written"
+    assert describe_error(OSError(28, "No space left on device", "ep/chest.mp4")) == "No space left on device (ep/chest.mp4)"
+    assert describe_error(ValueError("odd")) == "ValueError: odd"

@@ -131,10 +131,10 @@ def episode_frame(snapshot: Snapshot) -> EpisodeFrame:
 
 
 def describe_error(exc: Exception) -> str:
-    """One line: the OS reason and file for an OSError, else the exception's own text."""
+    """One line: the OS reason and file for an OSError, a user error's own line, else the exception's type and text."""
     if isinstance(exc, OSError) and exc.strerror:
         return f"{exc.strerror} ({exc.filename})" if exc.filename else exc.strerror
-    return f"{type(exc).__name__}: {exc}"
+    return str(exc) if isinstance(exc, UserError) else f"{type(exc).__name__}: {exc}"
 
 
 class Recorder:
