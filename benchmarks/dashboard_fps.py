@@ -5,7 +5,7 @@ cores), one fresh process per run (dearpygui allows one dashboard per process).
     python benchmarks/dashboard_fps.py [--frames 200] [--rounds 3] [--out docs/bench] [--before FILE] [--cpu-only]
         [--checkpoint CKPT]
 
-The CPU rows replay the sample with the nano model and measure, over a fixed window: the dashboard
+The CPU rows replay the sample with the default model (pico) and measure, over a fixed window: the dashboard
 process's CPU (all its threads: display, llvmpipe, player, engine) and the X server's, paused and
 playing, and the engine's predictions/s and capture-to-prediction latency while a second CPU-bound
 process runs beside it. `--before` takes an earlier dashboard.json and puts its CPU rows beside these.
@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-SETTINGS = (("no model", None), ("nano torch fp32", "torch fp32"), ("nano onnx int8", "onnx int8"),
-            ("live sim rig, nano torch fp32", "live"))
+SETTINGS = (("no model", None), ("pico torch-fp32", "torch-fp32"), ("pico onnx-int8", "onnx-int8"),
+            ("live sim rig, pico torch-fp32", "live"))
 LIVE_SCENE = Path("scenes/sim.toml")
 CPU_SETTINGS = ("paused", "playing", "playing beside a CPU-bound process")
 WINDOW_S = 5.0
@@ -38,10 +38,9 @@ WINDOW_S = 5.0
 def measure(tier: str | None, frames: int) -> dict:
     from touchanything.app.commands.live_command import open_live_session
     from touchanything.app.sessions.bundled import sample_episodes
-    from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, default_checkpoint
+    from touchanything.app.sessions.engine_choice import build_engine, choose, default_checkpoint
     from touchanything.app.sessions.replay_session import ReplaySession
     from touchanything.devices.episodes.episode_loader import open_episode
-    from touchanything.devices.snapshot import VIEW_NAMES
     from touchanything.viz.dashboard.dashboard import Dashboard
 
     if tier == "live":
@@ -49,9 +48,9 @@ def measure(tier: str | None, frames: int) -> dict:
         stats = Dashboard(session).run(max_frames=frames)
         engine_fps = session.state().engine_fps
     else:
-        choice = ModelChoice(default_checkpoint()).with_tier(tier or "torch fp32")
+        choice = choose(default_checkpoint()).with_tier(tier or "torch-fp32")
         with open_episode(sample_episodes()[0]) as episode:
-            engine = build_engine(choice, VIEW_NAMES) if tier else None
+            engine = build_engine(choice) if tier else None
             session = ReplaySession(episode, engine, choice).start()
             stats = Dashboard(session).run(max_frames=frames)
             engine_fps = session.state().engine_fps
@@ -65,21 +64,20 @@ def measure(tier: str | None, frames: int) -> dict:
 
 
 def measure_cpu(setting: str, x_server: int | None, checkpoint: Path | None) -> dict:
-    """One CPU row: the sample with `checkpoint` (None: the default nano) in the dashboard, driven from a thread (paused, or
+    """One CPU row: the sample with `checkpoint` (None: the default pico) in the dashboard, driven from a thread (paused, or
     playing from frame 0) and measured over WINDOW_S once the first prediction is on screen."""
     import threading
 
     from touchanything.app.sessions.bundled import sample_episodes
-    from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, default_checkpoint
+    from touchanything.app.sessions.engine_choice import build_engine, choose, default_checkpoint
     from touchanything.app.sessions.replay_session import ReplaySession
     from touchanything.devices.episodes.episode_loader import open_episode
-    from touchanything.devices.snapshot import VIEW_NAMES
     from touchanything.viz.dashboard.dashboard import Dashboard
 
-    choice = ModelChoice(checkpoint or default_checkpoint())
+    choice = choose(checkpoint or default_checkpoint())
     result: dict = {}
     with open_episode(sample_episodes()[0]) as episode:
-        session = ReplaySession(episode, build_engine(choice, VIEW_NAMES), choice).start()
+        session = ReplaySession(episode, build_engine(choice), choice).start()
         dashboard = Dashboard(session)
 
         def drive() -> None:
@@ -182,7 +180,7 @@ def markdown(rows: list[dict], before: list[dict]) -> str:
     rows = [r for r in rows if r["setting"] not in CPU_SETTINGS]
     lines = ["# Dashboard frame rate and CPU share (Xvfb, llvmpipe, 2-core CPU)", "",
              "## CPU share", "",
-             f"The bundled sample with the nano model (torch fp32) in the dashboard; medians of the runs, each measured "
+             f"The bundled sample with the pico model (torch fp32) in the dashboard; medians of the runs, each measured "
              f"over {WINDOW_S:g} s. Paused: the replay paused after its first prediction. Playing: from frame 0. "
              "Beside a CPU-bound process: a second process spinning in pure Python for the whole run. The load average "
              "is the machine's (other programs share its two cores).", "",
@@ -214,7 +212,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("docs/bench"))
     parser.add_argument("--before", type=Path, help="an earlier dashboard.json whose CPU rows are shown beside these")
     parser.add_argument("--cpu-only", action="store_true", help="only the CPU rows (quicker)")
-    parser.add_argument("--checkpoint", type=Path, help="the model of the CPU rows (default: the bundled nano)")
+    parser.add_argument("--checkpoint", type=Path, help="the model of the CPU rows (default: the bundled pico)")
     args = parser.parse_args()
     before = json.loads(args.before.read_text())["rows"] if args.before else []
     server = ensure_display()

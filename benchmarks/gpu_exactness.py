@@ -27,7 +27,7 @@ import torch
 from touchanything.app.sessions.bundled import SAMPLE_DIR, bundled_models
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_data import episode_paths, first_latency_clip
 from touchanything.inference.model.checkpoint import load_model
@@ -76,7 +76,7 @@ def engine_outputs(model: torch.nn.Module, clip: list[Snapshot], device: torch.d
     """frame index → newest-frame pressure (2, 21, 21) (NaN outside the layout), and the runtime's capture
     status. Hands without a pose are fed as the official protocol does (`invalid_hands="official"`), as the
     batch forward does."""
-    config = EngineConfig(precision=precision, device=str(device), capture=capture, invalid_hands="official")
+    config = EngineSetting(precision=precision, device=str(device), capture=capture, invalid_hands="official")
     engine = StreamingEngine(model, config)
     out = {p.frame_index: p.pressure for s in clip for p in engine.step(s)}
     return out, engine.runtime.capture

@@ -2,6 +2,7 @@
 option of replay, with the bad inputs of each (one line, exit 2, nothing written)."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -14,16 +15,17 @@ from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import bundled_models, sample_episodes
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.inference.engine.engine_setting import EngineSetting, parse_setting
 from touchanything.inference.evaluation.atlas import choose_within_budget, file_sha256, read_atlas, rows_for
-from touchanything.inference.evaluation.bench_setting import BenchSetting, parse_setting, settings_for
+from touchanything.inference.evaluation.bench_setting import settings_for
 
 
 def test_every_grid_setting_reads_back_from_its_name():
-    for setting in settings_for("nano", quick=False, pose_only=True):
-        assert parse_setting(setting.name()) == setting
-    assert BenchSetting("nano", "onnx", "int8").name() == "nano/onnx-int8/all"
-    assert parse_setting("nano/torch-fp32/ego+left") == BenchSetting("nano", views=("ego", "wrist_left"))
-    assert parse_setting("nano/onnx-int8/all/every2").rate == 2
+    for setting in settings_for("nano", quick=False, pose_only=True):  # bench runs on the CPU; a name has no device
+        assert parse_setting(setting.name()) == dataclasses.replace(setting, device="auto") and setting.device == "cpu"
+    assert EngineSetting("nano", "onnx", "int8").name() == "nano/onnx-int8/all"
+    assert parse_setting("nano/torch-fp32/ego+left") == EngineSetting("nano", views=("ego", "wrist_left"))
+    assert parse_setting("nano/onnx-int8/all/every2").every == 2
     assert parse_setting("tiny/torch-fp32/all/stitched").output == "stitched"
     assert parse_setting("paper/torch-tf32/all").precision == "tf32"
 
@@ -152,7 +154,7 @@ def test_replay_runs_a_named_setting_and_the_video_names_it(atlas, tmp_path, cap
     code, stdout, err = run_main(["replay", str(sample_episodes()[0]), "--setting", "nano/onnx-int8/ego", "--atlas",
                                   str(atlas), "--out", str(out)], capsys)
     assert code == 0, err
-    assert "setting nano/onnx-int8/ego: V-IoU 0.550 [0.530, 0.570]" in stdout and "onnx int8" in stdout
+    assert "setting nano/onnx-int8/ego: V-IoU 0.550 [0.530, 0.570]" in stdout and "onnx-int8" in stdout
     assert "setting   nano/onnx-int8/ego\n" in stdout  # the summary names what ran, as the video's footer does
     with av.open(str(out)) as container:
         assert sum(1 for _ in container.decode(video=0)) == 300
@@ -183,18 +185,22 @@ def test_setting_option_conflicts_are_refused(atlas, tmp_path, capsys):
     assert not (tmp_path / "x.mp4").exists()
 
 
-def test_views_of_a_setting_reach_the_engine(atlas):
-    from touchanything.app.commands.replay_command import selected_views
+def test_every_knob_of_a_setting_reaches_the_engine(atlas):
+    from touchanything.app.commands.replay_command import given_choice
     from touchanything.app.sessions.setting_choice import setting_request
 
     class Args:
         setting, budget_ms, device = "nano/onnx-int8/ego", None, "cpu"
-        checkpoint = config = runtime = precision = views = None
+        checkpoint = config = runtime = precision = views = onnx = None
 
     Args.atlas = atlas
     request = setting_request(Args)
     picked = request.pick("cpu")
     choice = picked.model_choice("cpu")
-    assert (choice.runtime, choice.precision, choice.every, choice.output) == ("onnx", "int8", 1, "newest")
-    assert selected_views(Args, picked) == ("ego",) and selected_views(Args, None) == VIEW_NAMES
+    assert choice.setting == dataclasses.replace(picked.row.setting, device="cpu") and choice.setting.views == ("ego",)
+    assert choice.setting.name() == "nano/onnx-int8/ego"
+    Args.views = [("ego",), ("ego", "wrist_right")]  # --views ego ego+right: their union
+    assert given_choice(Args).setting.views == ("ego", "wrist_right")
+    Args.views = None
+    assert given_choice(Args).setting.views == VIEW_NAMES
     assert request.inputs == (bundled_models()["nano"],)

@@ -40,7 +40,7 @@ def test_rows_have_the_documented_fields(nano_rows):
     assert [row["setting"] for row in rows] == ["nano/torch-fp32/all", "nano/onnx-int8/all"]
     for row in rows:
         for key in ("model", "checkpoint_sha256", "setting", "trajectories", "p50_ms", "p99_ms", "volumetric_iou",
-                    "contact_iou", "runtime", "precision", "views", "rate", "output", "agreement_viou", "peak_rss_mb",
+                    "contact_iou", "runtime", "precision", "views", "every", "output", "agreement_viou", "peak_rss_mb",
                     "device", "gpu_name", "capture", "per_trajectory"):
             assert key in row
         assert row["model"] == "nano" and row["trajectories"] == 1 and len(row["per_trajectory"]["volumetric_iou"]) == 1
@@ -61,12 +61,12 @@ def test_the_accuracy_columns_are_the_official_metrics_of_an_independent_replay(
 
     from touchanything.devices.episodes.episode_loader import open_episode
     from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-    from touchanything.inference.engine.engine_config import EngineConfig
+    from touchanything.inference.engine.engine_setting import EngineSetting
     from touchanything.inference.engine.streaming_engine import StreamingEngine
 
     rows, _ = nano_rows
     torch.manual_seed(0)
-    engine = StreamingEngine(TouchAnything(preset("nano")).eval(), EngineConfig(device="cpu"))
+    engine = StreamingEngine(TouchAnything(preset("nano")).eval(), EngineSetting(device="cpu"))
     with open_episode(sample_episodes()[0]) as episode:
         predictions = [p for s in islice(ReplaySource(episode, ReplayConfig(speed=None)), 40) for p in engine.step(s)]
         grids = np.asarray(episode.pressure.grids, np.float64)
@@ -98,7 +98,7 @@ def test_report_files_and_targets(nano_rows, tmp_path):
 def test_full_grid_turns_one_knob_at_a_time():
     grid = settings_for("nano", quick=False)
     assert grid[0] == settings_for("nano", quick=True)[0] and len(set(grid)) == len(grid) == 14
-    assert {s.output for s in grid} == {"newest", "centre", "stitched"} and {s.rate for s in grid} == {1, 2, 3}
+    assert {s.output for s in grid} == {"newest", "centre", "stitched"} and {s.every for s in grid} == {1, 2, 3}
     assert {(s.runtime, s.precision) for s in grid} == {("torch", "fp32"), ("torch", "bf16"), ("onnx", "fp32"), ("onnx", "int8")}
     assert len({s.views for s in grid}) == 4
 

@@ -53,7 +53,7 @@ def test_info_of_a_raw_episode_loads_no_torch(episode_dir):
 
 
 def test_the_front_door_imports_its_names_on_first_use():
-    probe = "import sys, touchanything; before = 'torch' in sys.modules; touchanything.EngineConfig; print(before)"
+    probe = "import sys, touchanything; before = 'torch' in sys.modules; touchanything.EngineSetting; print(before)"
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
 

@@ -13,7 +13,7 @@ import yaml
 
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.onnx_export import export_onnx
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.checkpoint import load_model, save_checkpoint
@@ -113,7 +113,7 @@ def test_pose_statistics_come_from_valid_hands_and_survive_a_checkpoint(tmp_path
 def test_streaming_newest_frame_equals_the_batch_forward(name, views):
     model = make(MODELS[name])
     frames = list(snapshots(64, 16, seed=2))
-    engine = StreamingEngine(model, EngineConfig(views=views))
+    engine = StreamingEngine(model, EngineSetting(views=views))
     predictions = [p for s in frames for p in engine.step(s)]
     clip = [frames[i] for i in range(1, 16, 2)]
     batch = {v: torch.stack([torch.from_numpy(s.images[v]) for s in clip]).float().div(255).movedim(-1, 1) for v in views}
@@ -133,10 +133,10 @@ def test_onnx_export_fp32_and_int8_agree_with_torch(name, tmp_path):
     model = make(MODELS[name])
     export_onnx(model, tmp_path, int8=True)
     frames = list(snapshots(64, 14, seed=5))
-    torch_engine = StreamingEngine(model, EngineConfig())
+    torch_engine = StreamingEngine(model, EngineSetting())
     reference = [p.pressure for s in frames for p in torch_engine.step(s)]
     for precision, tolerance in (("fp32", 1e-4), ("int8", 0.1)):
-        engine = StreamingEngine(model, EngineConfig(runtime="onnx", precision=precision, onnx_dir=tmp_path))
+        engine = StreamingEngine(model, EngineSetting(runtime="onnx", precision=precision), onnx_dir=tmp_path)
         got = [p.pressure for s in frames for p in engine.step(s)]
         assert max(float(np.nanmax(np.abs(a - b))) for a, b in zip(got, reference)) < tolerance
 

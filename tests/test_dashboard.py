@@ -16,7 +16,7 @@ from helpers.atlas_file import write_atlas
 from helpers.hand_video import write_hand_video
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import MODELS_DIR, sample_episodes
-from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, default_checkpoint
+from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, choose, default_checkpoint
 from touchanything.app.sessions.replay_runs import replay_in_dashboard
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.devices.episodes.episode_loader import open_episode
@@ -25,7 +25,7 @@ from touchanything.viz.dashboard.dashboard import CELL, MAPS, Dashboard
 from touchanything.viz.hand_projection import HAND_COLOURS, pose_label
 from touchanything.viz.pressure_panel import AXES, BACKGROUND, MAP_GAP
 
-NANO = ModelChoice(default_checkpoint())
+NANO = choose(default_checkpoint())
 
 
 def in_fresh_process(function, *args):
@@ -64,7 +64,7 @@ def summary(dashboard: Dashboard) -> dict:
 
 
 def replay_sample(shot: Path) -> dict:
-    return summary(replay_in_dashboard(sample_episodes()[0], NANO, VIEW_NAMES, max_frames=150, screenshot=shot))
+    return summary(replay_in_dashboard(sample_episodes()[0], NANO, max_frames=150, screenshot=shot))
 
 
 def test_the_dashboard_replays_the_sample_with_bounded_lag(dashboard_display, tmp_path):
@@ -136,7 +136,7 @@ def drive_controls(session: ReplaySession, dashboard: Dashboard, errors: list[st
         session.seek(200)
         session.set_views(("ego",))
         session.set_threshold(0.2)
-        session.set_model("nano_pose_only", "torch fp32")
+        session.set_model("nano_pose_only", "torch-fp32")
         session.play()
         wait_for(lambda: "running nano_pose_only" in session.state().message, "the pose-only model")
         wait_for(lambda: (p := session.state().prediction) is not None and p.views_used == ("ego",)
@@ -144,7 +144,7 @@ def drive_controls(session: ReplaySession, dashboard: Dashboard, errors: list[st
         state = session.state()
         assert state.cumulative is not None and state.metric_frames < 100, state.metric_frames
         assert state.model.startswith("nano_pose_only (pose only) — trained on simulated data; held-out V-IoU ")
-        assert state.model.endswith(" (torch fp32 on cpu)"), state.model
+        assert state.model.endswith(" (torch-fp32 on cpu)"), state.model
     except AssertionError as exc:
         errors.append(str(exc))
     finally:
@@ -154,7 +154,7 @@ def drive_controls(session: ReplaySession, dashboard: Dashboard, errors: list[st
 def controls_run() -> dict:
     errors: list[str] = []
     with open_episode(sample_episodes()[0]) as episode:
-        session = ReplaySession(episode, build_engine(NANO, VIEW_NAMES), NANO).start()
+        session = ReplaySession(episode, build_engine(NANO), NANO).start()
         dashboard = Dashboard(session)
         stats = run_driven(dashboard, lambda: drive_controls(session, dashboard, errors))
     return {"errors": errors, "threshold": session.threshold, "views": session.views, "frames": stats.frames}
@@ -168,7 +168,7 @@ def test_the_controls_pause_step_seek_switch_views_threshold_and_model(dashboard
 
 
 def replay_episode(path: Path, choice: ModelChoice, frames: int, shot: Path | None) -> dict:
-    return summary(replay_in_dashboard(path, choice, VIEW_NAMES, max_frames=frames, screenshot=shot))
+    return summary(replay_in_dashboard(path, choice, max_frames=frames, screenshot=shot))
 
 
 def test_an_episode_without_ground_truth_shows_prediction_only(dashboard_display, episode_dir, tmp_path):
@@ -184,7 +184,7 @@ def test_an_episode_without_ground_truth_shows_prediction_only(dashboard_display
 
 
 def test_a_checkpoint_for_another_preset_keeps_the_dashboard_running(dashboard_display):
-    wrong = ModelChoice(MODELS_DIR / "baseline_frames" / "best_model.pth", MODELS_DIR / "nano" / "config.yaml")
+    wrong = choose(MODELS_DIR / "baseline_frames" / "best_model.pth", MODELS_DIR / "nano" / "config.yaml")
     result = in_fresh_process(replay_episode, sample_episodes()[0], wrong, 60, None)
     assert result["message"].startswith("no prediction:") and "best_model.pth" in result["message"]
     assert result["frames"] >= 60 and result["pressure"] is None and result["snapshot"]
@@ -192,7 +192,7 @@ def test_a_checkpoint_for_another_preset_keeps_the_dashboard_running(dashboard_d
 
 
 def replay_plain_video(video: Path, shot: Path) -> dict:
-    dashboard = replay_in_dashboard(video, NANO, VIEW_NAMES, max_frames=90, screenshot=shot)
+    dashboard = replay_in_dashboard(video, NANO, max_frames=90, screenshot=shot)
     state = dashboard.session.state()
     return {**summary(dashboard), "pose": pose_label(dashboard.shown["snapshot"]), "stage_ms": state.stage_ms,
             "status": state.prediction.status, "hands": state.prediction.hands_predicted}
@@ -254,7 +254,7 @@ def test_no_display_is_one_clear_line(monkeypatch, capsys):
 
 
 def replay_with_atlas(atlas: Path, shot: Path) -> dict:
-    dashboard = replay_in_dashboard(sample_episodes()[0], NANO, VIEW_NAMES, max_frames=120, screenshot=shot, atlas=atlas)
+    dashboard = replay_in_dashboard(sample_episodes()[0], NANO, max_frames=120, screenshot=shot, atlas=atlas)
     state = dashboard.session.state()
     return {**summary(dashboard), "ring": dashboard.atlas.ring, "setting": state.setting, "p99": state.step_p99_ms,
             "rows": len(state.atlas), "y": [dashboard.atlas.y(v) for v in (0.60, 0.50)]}
@@ -285,7 +285,7 @@ def atlas_switch_run(atlas: Path) -> dict:
     seen: dict[str, object] = {}
     errors: list[str] = []
     with open_episode(sample_episodes()[0]) as episode:
-        session = ReplaySession(episode, build_engine(NANO, VIEW_NAMES), NANO, loop=True)
+        session = ReplaySession(episode, build_engine(NANO), NANO, loop=True)
         session.use_atlas(atlas)
         dashboard = Dashboard(session.start())
 
@@ -294,7 +294,7 @@ def atlas_switch_run(atlas: Path) -> dict:
                 wait_for(lambda: getattr(dashboard, "atlas", None) is not None and dashboard.atlas.ring is not None,
                          "the ring of nano")
                 seen["nano"] = dashboard.atlas.ring
-                session.set_model("baseline_pose", "onnx int8")
+                session.set_model("baseline_pose", "onnx-int8")
                 wait_for(lambda: session.state().setting == "baseline_pose/onnx-int8/all" and dashboard.atlas.ring is not None
                          and dashboard.atlas.ring != seen["nano"], "the ring of baseline_pose")
                 seen["baseline_pose"] = dashboard.atlas.ring

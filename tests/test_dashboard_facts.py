@@ -108,7 +108,7 @@ def drive(session: ReplaySession, dashboard: Dashboard, found: dict) -> None:
 def driven(episode_dir: Path, screenshots: Path) -> dict:
     found: dict = {}
     with open_episode(episode_dir) as episode:
-        session = ReplaySession(episode, build_engine(NANO, VIEW_NAMES), NANO).start()
+        session = ReplaySession(episode, build_engine(NANO), NANO).start()
         dashboard = Dashboard(session, DashboardConfig(screenshot_dir=screenshots))
         thread = threading.Thread(target=drive, args=(session, dashboard, found), daemon=True)
         thread.start()

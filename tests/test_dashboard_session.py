@@ -16,7 +16,6 @@ from touchanything.app.sessions.engine_choice import build_engine
 from touchanything.app.sessions.replay_runs import replay_in_dashboard
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.dashboard.dashboard import IDLE_PERIOD_S, MAX_FPS, Dashboard
 from touchanything.viz.dashboard.dashboard_controls import DEVICE_COLUMNS
 
@@ -81,7 +80,7 @@ def drive(session: ReplaySession, dashboard: Dashboard, found: dict) -> None:
 def driven_replay() -> dict:
     found: dict = {}
     with open_episode(sample_episodes()[0]) as episode:
-        session = ReplaySession(episode, build_engine(NANO, VIEW_NAMES), NANO).start()
+        session = ReplaySession(episode, build_engine(NANO), NANO).start()
         dashboard = Dashboard(session)
         thread = threading.Thread(target=drive, args=(session, dashboard, found), daemon=True)
         thread.start()
@@ -109,7 +108,7 @@ def test_the_dashboard_idles_when_paused_and_a_paused_seek_shows_the_frame_every
 
 
 def looped_demo(episode: Path) -> dict:
-    dashboard = replay_in_dashboard(episode, NANO, VIEW_NAMES, max_frames=240, loop=True)
+    dashboard = replay_in_dashboard(episode, NANO, max_frames=240, loop=True)
     state = dashboard.session.state()
     return {"passes": dashboard.session.passes, "paused": state.playback.paused,
             "camera updates": len(dashboard.stats.camera_lag_ms), "frames": state.playback.frames}

@@ -10,7 +10,7 @@ import pytest
 from conftest import write_episode
 from touchanything.app.commands.demo_command import tour_order
 from touchanything.app.sessions.bundled import sample_episodes
-from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint
+from touchanything.app.sessions.engine_choice import choose, default_checkpoint
 from touchanything.app.sessions.replay_export import ReplaySummary, tour_lines
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.devices.episodes.episode_loader import open_episode
@@ -40,7 +40,7 @@ def test_the_session_plays_its_episodes_in_turn_over_and_over(tmp_path):
     paths = [write_episode(tmp_path / "Home" / "a" / "1", frames=12, seed=1),
              write_episode(tmp_path / "Office" / "b" / "2", frames=9, seed=2)]
     with open_episode(paths[0]) as first, open_episode(paths[1]) as second:
-        session = ReplaySession(first, None, ModelChoice(default_checkpoint()), tour=[second])
+        session = ReplaySession(first, None, choose(default_checkpoint()), tour=[second])
         session.set_speed(4.0)
         session.start()
         try:
@@ -61,6 +61,6 @@ def test_the_session_plays_its_episodes_in_turn_over_and_over(tmp_path):
 @pytest.mark.parametrize("loop", [False, True])
 def test_one_episode_without_a_tour_plays_as_before(episode_dir, loop):
     with open_episode(episode_dir) as episode:
-        session = ReplaySession(episode, None, ModelChoice(default_checkpoint()), loop=loop)
+        session = ReplaySession(episode, None, choose(default_checkpoint()), loop=loop)
         assert session.episodes == [episode] and session.source.config.loop is loop
         assert session.source.config.hold_at_end is not loop

@@ -7,7 +7,7 @@ import pytest
 from touchanything.app.cli import main
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.onnx_runtime import OnnxRuntime
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.checkpoint import build_model, load_model
@@ -42,19 +42,19 @@ def test_export_writes_both_graphs_and_reports_agreement(exported, capsys):
 @pytest.mark.parametrize("views", [("ego",), VIEW_NAMES])
 def test_onnx_fp32_engine_equals_the_torch_engine(exported, views):
     model, graphs = exported
-    reference = outputs(StreamingEngine(model, EngineConfig(views=views)), stream(112, 18))
-    onnx = outputs(StreamingEngine(model, EngineConfig(runtime="onnx", onnx_dir=graphs, views=views)), stream(112, 18))
+    reference = outputs(StreamingEngine(model, EngineSetting(views=views)), stream(112, 18))
+    onnx = outputs(StreamingEngine(model, EngineSetting(runtime="onnx", views=views), onnx_dir=graphs), stream(112, 18))
     assert float(np.nanmax(np.abs(onnx - reference))) < 1e-4
 
 
 @pytest.mark.parametrize("runtime,precision", [("onnx", "int8"), ("torch", "bf16")])
 def test_reduced_precision_stays_close_and_finite_at_the_extremes(exported, runtime, precision):
     model, graphs = exported
-    config = EngineConfig(runtime=runtime, precision=precision, onnx_dir=graphs, invalid_hands="official")
-    reference = outputs(StreamingEngine(model, EngineConfig(invalid_hands="official")), stream(112, 16))
-    reduced = outputs(StreamingEngine(model, config), stream(112, 16))
+    config = EngineSetting(runtime=runtime, precision=precision, invalid_hands="official")
+    reference = outputs(StreamingEngine(model, EngineSetting(invalid_hands="official")), stream(112, 16))
+    reduced = outputs(StreamingEngine(model, config, onnx_dir=graphs), stream(112, 16))
     assert float(np.nanmax(np.abs(reduced - reference))) < 0.1
-    engine = StreamingEngine(model, config)
+    engine = StreamingEngine(model, config, onnx_dir=graphs)
     images = [np.zeros((112, 112, 3), np.uint8), np.full((112, 112, 3), 255, np.uint8),
               np.where(np.indices((112, 112, 3)).sum(0) % 2, 255, 0).astype(np.uint8)]
     joints = [np.full((42, 3), 1e6, np.float32), np.full((42, 3), -1e6, np.float32), np.full((42, 3), np.nan, np.float32),
@@ -68,17 +68,20 @@ def test_reduced_precision_stays_close_and_finite_at_the_extremes(exported, runt
 
 def test_runtime_selection_errors_are_clear(exported, tmp_path, capsys):
     model, graphs = exported
-    bad = [(EngineConfig(runtime="tensorrt"), "unknown runtime"), (EngineConfig(precision="int8"), "no precision"),
-           (EngineConfig(precision="fp16"), "fp16 needs a CUDA GPU"), (EngineConfig(output="middle"), "output position"),
-           (EngineConfig(every=0), "whole number"), (EngineConfig(every=2, output="centre"), "newest"),
-           (EngineConfig(views=("wrist_left",)), "must include ego"),
-           (EngineConfig(runtime="onnx", onnx_dir=tmp_path), "export-onnx")]
-    for config, message in bad:
+    bad = [(dict(runtime="tensorrt"), "unknown runtime"), (dict(precision="int8"), "no precision"),
+           (dict(output="middle"), "output position"), (dict(every=0), "whole number"), (dict(every=True), "whole number"),
+           (dict(every=2, output="centre"), "newest"), (dict(views=("wrist_left",)), "must include ego"),
+           (dict(invalid_hands="zero"), "invalid-hand mode")]
+    for knobs, message in bad:  # refused when the setting is made, before any engine
         with pytest.raises(UserError, match=message):
-            StreamingEngine(model, config)
+            EngineSetting(**knobs)
+    with pytest.raises(UserError, match="fp16 needs a CUDA GPU"):  # a device it cannot run on: when the engine is built
+        StreamingEngine(model, EngineSetting(precision="fp16", device="cpu"))
+    with pytest.raises(UserError, match="export-onnx"):
+        StreamingEngine(model, EngineSetting(runtime="onnx"), onnx_dir=tmp_path)
     other = build_model(PRESETS["tiny"])
     with pytest.raises(UserError, match="different model"):
-        StreamingEngine(other, EngineConfig(runtime="onnx", onnx_dir=graphs))
+        StreamingEngine(other, EngineSetting(runtime="onnx"), onnx_dir=graphs)
     (tmp_path / "engine.json").write_text('{"files": {"fp32": {"encoder": "x.onnx", "head": "y.onnx"}}, "image_size": 112}')
     with pytest.raises(UserError, match="cannot open the ONNX graphs"):
         OnnxRuntime(tmp_path)

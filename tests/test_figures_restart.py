@@ -9,7 +9,7 @@ import pytest
 
 from test_dashboard import wait_for
 from touchanything.app.sessions.bundled import bundled_models
-from touchanything.app.sessions.engine_choice import ModelChoice, build_engine
+from touchanything.app.sessions.engine_choice import build_engine, choose
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.snapshot import VIEW_NAMES
@@ -23,9 +23,9 @@ def paused_session(episode_dir):
     """A replay session of the 40-frame conftest episode with `FIRST`, paused before its first frame."""
     if not {FIRST, SECOND} <= set(bundled_models()):
         pytest.skip(f"the bundled models {FIRST} and {SECOND} are not in models/")
-    choice = ModelChoice(bundled_models()[FIRST])
+    choice = choose(bundled_models()[FIRST])
     with open_episode(episode_dir) as episode:
-        session = ReplaySession(episode, build_engine(choice, VIEW_NAMES), choice)
+        session = ReplaySession(episode, build_engine(choice), choice)
         session.pause()
         session.start()
         try:
@@ -61,7 +61,7 @@ def test_a_model_switch_restarts_the_figures_and_shows_nothing_of_the_old_model(
     assert state.cumulative["volumetric_iou"] == pytest.approx(by_hand(before)["volumetric_iou"], abs=1e-9)
     shown_truth = state.truth
 
-    session.set_model(SECOND, "torch fp32")
+    session.set_model(SECOND, "torch-fp32")
     wait_for(lambda: session.state().model.startswith(SECOND), "the new model")
     state = session.state()  # paused: nothing has run since the switch
     assert state.prediction is None and state.metric_frames == 0

@@ -46,7 +46,7 @@ def test_every_public_name_resolves_and_nothing_private_is_listed():
         assert "not_a_public_name" in str(exc)
     else:
         raise AssertionError("an unlisted name resolved")
-    assert {"load_model", "StreamingEngine", "EngineConfig", "Snapshot", "Prediction", "open_episode", "TactileLayout",
+    assert {"load_model", "StreamingEngine", "EngineSetting", "Snapshot", "Prediction", "open_episode", "TactileLayout",
             "compute_tactile_metrics"} <= set(touchanything.__all__)
 
 

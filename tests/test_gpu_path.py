@@ -24,8 +24,8 @@ from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine import captured_call
 from touchanything.inference.engine.captured_call import CapturedCall, CapturedCalls
-from touchanything.inference.engine.engine_config import EngineConfig, check_runtime
 from touchanything.inference.engine.engine_runtime import TorchRuntime
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.model_halves import model_halves
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.checkpoint import load_model
@@ -107,10 +107,10 @@ def test_the_precisions_a_device_offers(device):
     for precision in PRECISIONS:
         if precision in precisions(device):
             check_precision(precision, device)
-            assert check_runtime("torch", precision, str(device)) == device
+            assert EngineSetting(runtime="torch", precision=precision, device=str(device)).resolved_device() == device
         else:
             with pytest.raises(UserError, match=f"{precision} needs a CUDA GPU"):
-                check_runtime("torch", precision, str(device))
+                EngineSetting(runtime="torch", precision=precision, device=str(device)).resolved_device()
     with pytest.raises(UserError, match="unknown precision"):
         check_precision("fp8", device)
 
@@ -118,12 +118,13 @@ def test_the_precisions_a_device_offers(device):
 def test_precision_and_runtime_device_pairs():
     with pytest.raises(UserError, match="fp16 needs a CUDA GPU"):
         check_precision("fp16", torch.device("cpu"))
-    assert check_runtime("onnx", "int8", "auto") == torch.device("cpu")  # ONNX Runtime is the CPU build
+    onnx = EngineSetting(runtime="onnx", precision="int8", device="auto")
+    assert onnx.resolved_device() == torch.device("cpu")  # ONNX Runtime is the CPU build
     # asked for CUDA: absent here, or ONNX Runtime cannot use it
     with pytest.raises(UserError, match="runtime onnx runs on the CPU only" if CUDA else "no usable CUDA GPU"):
-        check_runtime("onnx", "fp32", "cuda")
+        EngineSetting(runtime="onnx", precision="fp32", device="cuda").resolved_device()
     with pytest.raises(UserError, match="unknown device"):
-        check_runtime("onnx", "fp32", "tpu")
+        EngineSetting(runtime="onnx", precision="fp32", device="tpu").resolved_device()
 
 
 @pytest.mark.parametrize("height, width, size", [(480, 640, 224), (48, 64, 112), (224, 224, 224), (1, 1, 14)])
@@ -227,7 +228,7 @@ def pressures(engine: StreamingEngine) -> np.ndarray:
 def test_the_engine_reports_its_device_and_capture_and_the_other_preprocessing_stays_close(device):
     torch.manual_seed(0)
     model = TouchAnything(preset("nano")).eval()
-    engine = StreamingEngine(model, EngineConfig(device=str(device)))
+    engine = StreamingEngine(model, EngineSetting(device=str(device)))
     runtime = engine.runtime
     assert isinstance(runtime, TorchRuntime) and runtime.device == device
     assert runtime.capture == {"cpu": CAPTURED["cpu"], "cuda": "CUDA graphs (captured at the first call)"}[device.type]
@@ -245,9 +246,9 @@ def test_every_precision_of_the_device_stays_close_to_fp32(device):
     """bf16 (and on a GPU fp16 and tf32) through autocast, captured on a GPU like fp32, results float32."""
     torch.manual_seed(0)
     model = TouchAnything(preset("nano")).eval()
-    reference = pressures(StreamingEngine(model, EngineConfig(device=str(device))))
+    reference = pressures(StreamingEngine(model, EngineSetting(device=str(device))))
     for precision in lower_precisions(device):
-        engine = StreamingEngine(model, EngineConfig(device=str(device), precision=precision))
+        engine = StreamingEngine(model, EngineSetting(device=str(device), precision=precision))
         low = pressures(engine)
         assert low.dtype == np.float32 and np.array_equal(np.isnan(low), np.isnan(reference)), precision
         assert np.nanmax(np.abs(low - reference)) < LOW_PRECISION_MAX[device.type][precision], precision
@@ -295,8 +296,8 @@ def scene_on(tmp_path: Path, device: str) -> Path:
 
 
 def test_a_scene_names_the_device_of_its_model(tmp_path):
-    assert read_scene(scene_on(tmp_path, "cpu")).model.device == "cpu"
-    assert read_scene(scene_on(tmp_path, "cuda:0")).model.device == "cuda:0"
+    assert read_scene(scene_on(tmp_path, "cpu")).model.setting.device == "cpu"
+    assert read_scene(scene_on(tmp_path, "cuda:0")).model.setting.device == "cuda:0"
 
 
 @without_cuda
@@ -346,7 +347,7 @@ def test_tf32_is_a_gpu_precision_set_only_inside_its_context():
     with pytest.raises(UserError, match="tf32 needs a CUDA GPU"):
         check_precision("tf32", torch.device("cpu"))
     with pytest.raises(UserError, match="tf32 needs a CUDA GPU"):
-        check_runtime("torch", "tf32", "cpu")
+        EngineSetting(runtime="torch", precision="tf32", device="cpu").resolved_device()
     modes = (torch.backends.cuda.matmul, torch.backends.cudnn.conv)
     before = [m.fp32_precision for m in modes]
     assert before != ["tf32", "tf32"]

@@ -16,7 +16,7 @@ import pytest
 
 from helpers.hand_video import HANDS_DIR, background, reference_image, write_hand_video
 from touchanything.app.cli import main
-from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, default_checkpoint
+from touchanything.app.sessions.engine_choice import build_engine, choose, default_checkpoint
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.devices.camera_pose.estimator import STAGE, CameraPoseConfig, HandPoseEstimator
 from touchanything.devices.camera_pose.model_file import installed_model_path
@@ -26,10 +26,10 @@ from touchanything.devices.episodes.video_io import VideoReader, VideoWriter
 from touchanything.devices.errors import UserError
 from touchanything.devices.hand_pose import pose_is_valid
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.snapshot import POSE_FROM_CAMERA, VIEW_NAMES
+from touchanything.devices.snapshot import POSE_FROM_CAMERA
 from touchanything.viz.replay_frame import footer_text
 
-NANO = ModelChoice(default_checkpoint())
+NANO = choose(default_checkpoint())
 FRAMES, EMPTY = 24, 4
 
 
@@ -129,7 +129,7 @@ def test_replay_estimates_the_same_poses_every_time_and_restarts_at_a_seek(hand_
 
 
 def test_no_camera_hand_no_prediction_with_the_reason_shown(hand_video):
-    engine = build_engine(NANO, VIEW_NAMES)
+    engine = build_engine(NANO)
     with contextlib.closing(camera_replay(hand_video)) as source:
         for snapshot in source:
             [prediction] = engine.step(snapshot)
@@ -166,9 +166,9 @@ def test_replay_of_a_plain_video_headless(hand_video, tmp_path, capsys):
 
 
 def test_the_dashboard_says_a_camera_pose_prediction_is_illustrative(hand_video):
-    choice = ModelChoice(default_checkpoint())
+    choice = choose(default_checkpoint())
     with open_episode(hand_video) as episode:
-        session = ReplaySession(episode, build_engine(choice, VIEW_NAMES), choice, pose_source="camera").start()
+        session = ReplaySession(episode, build_engine(choice), choice, pose_source="camera").start()
         try:
             deadline = time.monotonic() + 60
             while session.state().snapshot is None and time.monotonic() < deadline:

@@ -22,7 +22,7 @@ from touchanything.app.sessions.bundled import sample_episodes
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 from touchanything.devices.snapshot import Snapshot
-from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.live_engine import LiveEngine
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.model_config import preset
@@ -65,7 +65,7 @@ def forced_drops(delivered: list) -> int:
 
 def test_a_slow_engine_drops_frames_and_its_latency_stays_bounded():
     torch.manual_seed(0)
-    engine = StreamingEngine(TouchAnything(preset("small")).eval(), EngineConfig())
+    engine = StreamingEngine(TouchAnything(preset("small")).eval(), EngineSetting())
     live, delivered = live_replay(engine, ("ego", "wrist_left", "wrist_right"))
     assert live.stats.submitted == 300 and len(delivered) == live.stats.processed == 300 - live.stats.dropped
     assert live.stats.dropped > 30, live.stats
@@ -81,7 +81,7 @@ def test_a_slow_engine_drops_frames_and_its_latency_stays_bounded():
 
 def test_a_fast_engine_keeps_up():
     torch.manual_seed(0)
-    engine = StreamingEngine(TouchAnything(preset("nano")).eval(), EngineConfig(views=("ego",)))
+    engine = StreamingEngine(TouchAnything(preset("nano")).eval(), EngineSetting(views=("ego",)))
     live, delivered = live_replay(engine, ("ego",))
     forced = forced_drops(delivered)
     print(f"fast engine: {np.median([p.timings_ms['total'] for p in delivered]):.1f} ms/step, "
@@ -95,7 +95,7 @@ def test_a_fast_engine_keeps_up():
 
 def test_an_engine_error_is_kept_and_raised_on_stop():
     torch.manual_seed(0)
-    engine = StreamingEngine(TouchAnything(preset("nano")).eval(), EngineConfig())
+    engine = StreamingEngine(TouchAnything(preset("nano")).eval(), EngineSetting())
     broken = Snapshot(0, 0, {"ego": np.zeros((4, 4, 3, 2), np.uint8)}, np.zeros((42, 3), np.float32), np.ones(2, bool))
     live = LiveEngine(engine).start()
     live.submit(broken)

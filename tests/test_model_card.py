@@ -9,7 +9,7 @@ import shutil
 
 import numpy as np
 
-from touchanything.app.sessions.engine_choice import ModelChoice, illustrative_note, model_label, model_name
+from touchanything.app.sessions.engine_choice import choose, illustrative_note, model_label, model_name
 from touchanything.inference.model.model_card import CARD_FILE, ModelCard, read_card, write_card
 from touchanything.viz.comparison_video import CAMERA_HEIGHT, PANEL_HEIGHT, comparison_frame
 
@@ -37,20 +37,20 @@ def test_a_card_round_trips_and_summarises_the_held_out_accuracy(tmp_path):
 
 def test_a_missing_or_broken_card_names_the_model_by_its_path(tmp_path):
     checkpoint = carded_checkpoint(tmp_path, None)
-    assert read_card(checkpoint) is None and model_name(ModelChoice(checkpoint)) == str(checkpoint)
+    assert read_card(checkpoint) is None and model_name(choose(checkpoint)) == str(checkpoint)
     for text in ("", "{", "[]", '{"name": "x"}', '{"name": "x", "trained_on": "y", "held_out": {"a": {"b": "c"}}}'):
         (checkpoint.parent / CARD_FILE).write_text(text)
         assert read_card(checkpoint) is None, text
 
 
 def test_the_model_line_names_the_model_and_where_it_was_trained(tmp_path):
-    choice = ModelChoice(carded_checkpoint(tmp_path, SIMULATED), runtime="onnx", precision="int8")
+    choice = choose(carded_checkpoint(tmp_path, SIMULATED), runtime="onnx", precision="int8")
     assert model_label(choice) == ("nano — trained on simulated data; held-out V-IoU 0.55 seen / 0.53 unseen objects"
-                                   " (onnx int8)")
+                                   " (onnx-int8)")
 
 
 def test_camera_poses_make_a_simulated_model_illustrative(tmp_path):
-    simulated = ModelChoice(carded_checkpoint(tmp_path, SIMULATED))
+    simulated = choose(carded_checkpoint(tmp_path, SIMULATED))
     assert illustrative_note(simulated, camera_pose=True).startswith("illustrative only: bare-hand poses from the camera")
     assert illustrative_note(simulated, camera_pose=False) == ""
     write_card(simulated.checkpoint.parent, ModelCard("mine", "real EgoTouch recordings"))

@@ -24,7 +24,7 @@ from touchanything.app.sessions.bundled import MODELS_DIR
 from touchanything.app.sessions.scene import read_scene
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.live_engine import LiveEngine
 from touchanything.inference.engine.onnx_cache import onnx_cache_dir
 from touchanything.inference.engine.onnx_export import weights_sha256
@@ -84,7 +84,7 @@ def test_other_weights_of_the_same_architecture_are_refused_naming_both_digests(
     exported, other = reference_sha256(load_model(NANO)), reference_sha256(load_model(perturbed))
     assert exported != other
     with pytest.raises(UserError) as refused:
-        StreamingEngine(load_model(perturbed), EngineConfig(runtime="onnx", onnx_dir=nano_export))
+        StreamingEngine(load_model(perturbed), EngineSetting(runtime="onnx"), onnx_dir=nano_export)
     assert str(refused.value) == (f"{nano_export}: the ONNX graphs were exported from other weights (sha256 "
                                   f"{exported[:12]}… ≠ this model's {other[:12]}…); export again with "
                                   "`touchanything export-onnx`")
@@ -99,7 +99,7 @@ def test_the_same_weights_saved_again_are_accepted(nano_export, tmp_path):
     """The digest is of the weights, not of the checkpoint file: a re-saved copy runs the export."""
     save_checkpoint(tmp_path / "best_model.pth", load_model(NANO), epoch=7)
     assert (tmp_path / "best_model.pth").read_bytes() != NANO.read_bytes()
-    StreamingEngine(load_model(tmp_path / "best_model.pth"), EngineConfig(runtime="onnx", onnx_dir=nano_export))
+    StreamingEngine(load_model(tmp_path / "best_model.pth"), EngineSetting(runtime="onnx"), onnx_dir=nano_export)
 
 
 def test_old_exports_and_foreign_graph_files_are_refused(nano_export, perturbed_nano_export, tmp_path):
@@ -109,7 +109,7 @@ def test_old_exports_and_foreign_graph_files_are_refused(nano_export, perturbed_
     del manifest["weights_sha256"]
     (old / "engine.json").write_text(json.dumps(manifest))
     with pytest.raises(UserError, match=r"does not record the SHA-256 of its weights .*export again"):
-        StreamingEngine(load_model(NANO), EngineConfig(runtime="onnx", onnx_dir=old))
+        StreamingEngine(load_model(NANO), EngineSetting(runtime="onnx"), onnx_dir=old)
     mixed = shutil.copytree(perturbed_nano_export, tmp_path / "mixed")
     shutil.copy(nano_export / "head.onnx", mixed / "head.onnx")
     with pytest.raises(UserError, match=r"head\.onnx: this graph was not exported with the weights"):
@@ -149,7 +149,7 @@ def test_exporting_again_replaces_only_the_exports_files(perturbed_nano_export, 
     assert {path: sha256(path) for path in kept} == kept and not (out / "encoder.onnx").is_symlink()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["elsewhere.onnx", "graphs"]
     assert json.loads((out / "engine.json").read_text())["weights_sha256"] == reference_sha256(load_model(NANO))
-    StreamingEngine(load_model(NANO), EngineConfig(runtime="onnx", onnx_dir=out))
+    StreamingEngine(load_model(NANO), EngineSetting(runtime="onnx"), onnx_dir=out)
 
 
 def test_a_folder_without_an_export_is_written_into_only_with_overwrite_and_keeps_its_files(tmp_path, capsys):
@@ -171,7 +171,7 @@ def test_a_folder_without_an_export_is_written_into_only_with_overwrite_and_keep
     assert "removed" not in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == [*EXPORT, "my_notes.txt", "my_runs"]
     assert {path: sha256(path) for path in kept} == kept and elsewhere.stat().st_nlink == 1
-    StreamingEngine(load_model(NANO), EngineConfig(runtime="onnx", onnx_dir=out))
+    StreamingEngine(load_model(NANO), EngineSetting(runtime="onnx"), onnx_dir=out)
 
 
 def test_an_input_or_a_foreign_file_at_an_exports_name_is_refused_before_any_work(nano_export, perturbed, tmp_path,
@@ -233,7 +233,7 @@ def test_the_user_cache_is_keyed_by_the_weights_filled_once_and_a_running_engine
     images = {v: rng.integers(0, 256, (64, 64, 3), dtype=np.uint8) for v in VIEW_NAMES}
     joints = (rng.normal(0, 2, (42, 3)) + [0, 0, 40]).astype(np.float32)
     done = threading.Event()
-    with LiveEngine(StreamingEngine(load_model(NANO), EngineConfig())) as live:
+    with LiveEngine(StreamingEngine(load_model(NANO), EngineSetting())) as live:
         def feed() -> None:
             for i in itertools.count():
                 if done.wait(1 / 30):
@@ -244,7 +244,7 @@ def test_the_user_cache_is_keyed_by_the_weights_filled_once_and_a_running_engine
         feeder.start()
         try:
             started = live.stats.processed
-            StreamingEngine(model, EngineConfig(runtime="onnx", precision="int8"))
+            StreamingEngine(model, EngineSetting(runtime="onnx", precision="int8"))
             during = live.stats.processed - started
         finally:
             done.set()
@@ -253,7 +253,7 @@ def test_the_user_cache_is_keyed_by_the_weights_filled_once_and_a_running_engine
     manifest = json.loads((folder / "engine.json").read_text())
     assert manifest["weights_sha256"] == digest and set(manifest["files"]) == {"fp32", "int8"}
     stamp = (folder / "engine.json").stat().st_mtime_ns
-    StreamingEngine(model, EngineConfig(runtime="onnx"))
+    StreamingEngine(model, EngineSetting(runtime="onnx"))
     assert (folder / "engine.json").stat().st_mtime_ns == stamp
 
 
@@ -262,7 +262,7 @@ def test_a_failed_cache_export_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     model = load_model(NANO)
     with pytest.raises(UserError) as refused:
-        StreamingEngine(model, EngineConfig(runtime="onnx"))
+        StreamingEngine(model, EngineSetting(runtime="onnx"))
     folder = tmp_path / "cache" / "touchanything" / "onnx" / reference_sha256(model)[:16]
     assert str(refused.value) == (f"{folder}: exporting the ONNX graphs into the cache failed: cannot be created "
                                   f"({tmp_path / 'cache'} is not a folder)")
@@ -274,7 +274,7 @@ def test_replay_runs_an_export_folder_and_names_it(nano_export, tmp_path, capsys
     assert main(["replay", str(episode), "--headless", "--onnx", str(nano_export), "--out", str(out)]) == 0
     lines = capsys.readouterr().out.splitlines()
     model = next(line for line in lines if line.startswith("model "))
-    assert f"(onnx fp32 from {nano_export} on cpu)" in model and model.startswith("model     nano")
+    assert f"(onnx-fp32 from {nano_export} on cpu)" in model and model.startswith("model     nano")
     assert out.is_file()
 
 
@@ -303,7 +303,7 @@ def test_live_and_scenes_take_an_export_folder(nano_export, tmp_path):
     scene = tmp_path / "scene.toml"
     scene.write_text(f'[model]\nonnx_dir = "{nano_export}"\nprecision = "fp32"\n')
     choice = read_scene(scene).model
-    assert (choice.runtime, choice.onnx_dir, choice.checkpoint) == ("onnx", nano_export, NANO.resolve())
+    assert (choice.setting.runtime, choice.onnx_dir, choice.checkpoint) == ("onnx", nano_export, NANO.resolve())
     scene.write_text(f'[model]\nonnx_dir = "{nano_export}"\nruntime = "torch"\n')
     with pytest.raises(UserError, match="runs on the onnx runtime, not torch"):
         read_scene(scene)

@@ -28,13 +28,13 @@ from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
 from touchanything.devices.errors import UserError
 from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench import BenchPlan, bench_model
 from touchanything.inference.evaluation.bench_accuracy import HeldOut, replay_outputs
 from touchanything.inference.evaluation.bench_data import latency_clip, load_episode
 from touchanything.inference.evaluation.bench_report import markdown as bench_markdown
 from touchanything.inference.evaluation.bench_report import target_checks, write_outputs
-from touchanything.inference.evaluation.bench_setting import BenchSetting
 from touchanything.inference.evaluation.evaluation import EvaluationResult, evaluate, vision_share_summary
 from touchanything.inference.evaluation.metrics import ALL_METRICS, COUNT_METRICS
 from touchanything.inference.evaluation.trajectory_prediction import predict_trajectory
@@ -142,7 +142,7 @@ def test_a_view_the_episode_lacks_is_the_same_error_with_blank_frames(tmp_path, 
 
 def test_bench_blank_replay_equals_black_snapshots_by_hand():
     torch.manual_seed(0)
-    engine = StreamingEngine(TouchAnything(preset("nano")).eval(), BenchSetting("nano").engine_config(None))
+    engine = StreamingEngine(TouchAnything(preset("nano")).eval(), EngineSetting("nano"))
     episode = load_episode(sample_episodes()[0], 112, 30)
     black = dataclasses.replace(episode, images={v: np.zeros_like(frames) for v, frames in episode.images.items()})
     blank = replay_outputs(engine, episode, [0.0], blank=True)

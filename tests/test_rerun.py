@@ -294,11 +294,10 @@ def test_eval_video_writes_one_recording_per_trajectory(sim_hdf5_root, tiny_chec
 
 
 def _dashboard_with_recording(episode: Path, rrd: Path) -> str:
-    from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint
+    from touchanything.app.sessions.engine_choice import choose, default_checkpoint
     from touchanything.app.sessions.replay_runs import replay_in_dashboard
-    from touchanything.devices.snapshot import VIEW_NAMES
 
-    dashboard = replay_in_dashboard(episode, ModelChoice(default_checkpoint()), VIEW_NAMES, max_frames=30, rerun=RerunTarget(rrd))
+    dashboard = replay_in_dashboard(episode, choose(default_checkpoint()), max_frames=30, rerun=RerunTarget(rrd))
     return dashboard.session.rerun.line()
 
 

@@ -15,11 +15,10 @@ from test_dashboard import wait_for
 from test_figures_restart import FIRST, paused_session, step_to  # noqa: F401 - a fixture and its helper
 from test_streaming import random_stream, snapshot
 from touchanything.app.sessions.bundled import bundled_models
-from touchanything.app.sessions.engine_choice import ModelChoice, build_engine
+from touchanything.app.sessions.engine_choice import build_engine, choose
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.model.model_config import preset
 from touchanything.inference.model.touch_model import TouchAnything
@@ -54,8 +53,8 @@ def same(a: list[list], b: list[list]) -> None:
             np.testing.assert_allclose(p.pressure, q.pressure, rtol=0, atol=1e-6, err_msg=f"frame {p.frame_index}")
 
 
-CONFIGS = {"newest": EngineConfig(), "centre": EngineConfig(output="centre"), "stitched": EngineConfig(output="stitched"),
-           "every 3": EngineConfig(every=3)}
+CONFIGS = {"newest": EngineSetting(), "centre": EngineSetting(output="centre"), "stitched": EngineSetting(output="stitched"),
+           "every 3": EngineSetting(every=3)}
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))
@@ -97,7 +96,7 @@ def test_the_replay_session_resets_the_engine_on_a_forward_seek(paused_session, 
     shown = {12: session.state().prediction.pressure}
     for frame in range(13, 16):
         shown[frame] = step_to(session, frame)[0]
-    fresh = build_engine(ModelChoice(bundled_models()[FIRST]), VIEW_NAMES)  # the checkpoint loaded again
+    fresh = build_engine(choose(bundled_models()[FIRST]))  # the checkpoint loaded again
     expected = {}
     with open_episode(episode_dir) as episode:
         for snap in ReplaySource(episode, ReplayConfig(speed=None, start_frame=12)):

@@ -10,7 +10,7 @@ import torch
 from touchanything.devices.episodes.episode_loader import find_hdf5_files, open_episode
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.frame_ring import CachedFrame, FrameRing
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.trajectory_prediction import predict_trajectory
@@ -66,7 +66,7 @@ def close(prediction, expected: np.ndarray) -> bool:
 @pytest.mark.parametrize("views", [("ego",), ("ego", "wrist_left"), ("ego", "wrist_right"), VIEW_NAMES])
 def test_newest_frame_equals_the_batch_forward(model, views):
     stream = random_stream(model.config.image_size, 22, seed=len(views))
-    engine = StreamingEngine(model, EngineConfig(views=views))
+    engine = StreamingEngine(model, EngineSetting(views=views))
     predictions = run(engine, stream, range(22), views)
     assert sorted(predictions) == list(range(22))
     for end in range(14, 22):
@@ -77,7 +77,7 @@ def test_newest_frame_equals_the_batch_forward(model, views):
 
 def test_centre_output_equals_the_batch_forward_at_position_four(model):
     stream = random_stream(model.config.image_size, 26, seed=7)
-    engine = StreamingEngine(model, EngineConfig(output="centre"))
+    engine = StreamingEngine(model, EngineSetting(output="centre"))
     predictions = run(engine, stream, range(26))
     predictions.update({p.frame_index: p for p in engine.drain()})
     assert sorted(predictions) == list(range(26))
@@ -93,7 +93,7 @@ def test_stitched_output_equals_the_official_offline_protocol(sim_hdf5_root):
         expected = predict_trajectory(model, episode, VIEW_NAMES, batch_size=8, ego_path="views").stitched
         from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 
-        engine = StreamingEngine(model, EngineConfig(output="stitched", invalid_hands="official"))
+        engine = StreamingEngine(model, EngineSetting(output="stitched", invalid_hands="official"))
         predictions = [p for s in ReplaySource(episode, ReplayConfig(speed=None)) for p in engine.step(s)]
         predictions += engine.drain()
     assert [p.frame_index for p in predictions] == list(range(episode.num_frames))
@@ -115,23 +115,23 @@ def test_dropped_frames_use_the_nearest_cached_frames():
 def test_views_may_change_mid_stream(model):
     size = model.config.image_size
     stream = random_stream(size, 46, seed=11)
-    engine = StreamingEngine(model, EngineConfig())
+    engine = StreamingEngine(model, EngineSetting())
     before = run(engine, stream, range(30))
     after = run(engine, stream, range(30, 46), ("ego",))
     assert before[29].views_used == VIEW_NAMES and after[30].views_used == ("ego",)
     assert close(after[44], batch_output(model, stream, clip(44), ("ego",))[-1])
     engine.set_views(("ego", "wrist_right"))
-    again = run(StreamingEngine(model, EngineConfig(views=("ego", "wrist_right"))), stream, range(46))
+    again = run(StreamingEngine(model, EngineSetting(views=("ego", "wrist_right"))), stream, range(46))
     assert again[45].views_used == ("ego", "wrist_right")
     assert close(again[45], batch_output(model, stream, clip(45), ("ego", "wrist_right"))[-1])
 
 
 def test_seek_clears_the_cache(model):
     stream = random_stream(model.config.image_size, 40, seed=5)
-    engine = StreamingEngine(model, EngineConfig())
+    engine = StreamingEngine(model, EngineSetting())
     run(engine, stream, range(30))
     seeked = run(engine, stream, range(10, 25))
-    fresh = run(StreamingEngine(model, EngineConfig()), stream, range(10, 25))
+    fresh = run(StreamingEngine(model, EngineSetting()), stream, range(10, 25))
     for frame in range(10, 25):
         assert np.array_equal(seeked[frame].pressure, fresh[frame].pressure, equal_nan=True)
     assert close(seeked[24], batch_output(model, stream, clip(24), VIEW_NAMES)[-1])
@@ -142,8 +142,8 @@ def test_invalid_hands_are_skipped_or_fed_as_official_minus_ten(model):
     valid[:, 1] = False
     valid[19] = False
     stream = random_stream(model.config.image_size, 20, seed=2, valid=valid)
-    skip = run(StreamingEngine(model, EngineConfig()), stream, range(20))
-    official = run(StreamingEngine(model, EngineConfig(invalid_hands="official")), stream, range(20))
+    skip = run(StreamingEngine(model, EngineSetting()), stream, range(20))
+    official = run(StreamingEngine(model, EngineSetting(invalid_hands="official")), stream, range(20))
     assert skip[16].hands_predicted == (True, False) and skip[16].status == "right hand: no pose"
     assert np.nanmax(skip[16].pressure[1]) == 0.0
     assert official[16].hands_predicted == (True, True)
@@ -154,7 +154,7 @@ def test_invalid_hands_are_skipped_or_fed_as_official_minus_ten(model):
 
 def test_no_ego_view_gives_no_prediction_with_the_reason(model):
     stream = random_stream(model.config.image_size, 3)
-    engine = StreamingEngine(model, EngineConfig())
+    engine = StreamingEngine(model, EngineSetting())
     (prediction,) = engine.step(snapshot(stream, 0, ("wrist_left", "wrist_right")))
     assert prediction.pressure is None and "no ego" in prediction.status
     assert "encode" not in prediction.timings_ms
@@ -162,7 +162,7 @@ def test_no_ego_view_gives_no_prediction_with_the_reason(model):
 
 def test_every_kth_frame_holds_the_last_prediction(model):
     stream = random_stream(model.config.image_size, 12)
-    predictions = run(StreamingEngine(model, EngineConfig(every=3)), stream, range(12))
+    predictions = run(StreamingEngine(model, EngineSetting(every=3)), stream, range(12))
     computed = [i for i, p in predictions.items() if not p.held]
     assert computed == [0, 3, 6, 9]
     assert predictions[4].pressure is predictions[3].pressure and predictions[4].held

@@ -5,7 +5,7 @@ The front door for scripting the tool. The bundled model on the bundled sample:
     import touchanything as ta
 
     model = ta.load_model(ta.bundled_models()["nano"])
-    engine = ta.StreamingEngine(model, ta.EngineConfig())
+    engine = ta.StreamingEngine(model, ta.EngineSetting("pico"))
     with ta.open_episode(ta.sample_episodes()[0]) as episode:
         replay = ta.ReplaySource(episode, ta.ReplayConfig(speed=None))
         predictions = [p for snapshot in replay for p in engine.step(snapshot)]
@@ -31,7 +31,7 @@ _SOURCES = {
     "touchanything.devices.rig.replay": ("ReplayConfig", "ReplaySource"),
     "touchanything.devices.snapshot": ("VIEW_NAMES", "Snapshot"),
     "touchanything.devices.tactile_layout": ("TactileLayout",),
-    "touchanything.inference.engine.engine_config": ("EngineConfig",),
+    "touchanything.inference.engine.engine_setting": ("EngineSetting", "parse_setting"),
     "touchanything.inference.engine.live_engine": ("LiveEngine",),
     "touchanything.inference.engine.prediction": ("Prediction",),
     "touchanything.inference.engine.streaming_engine": ("StreamingEngine",),
@@ -51,7 +51,7 @@ __all__ = [
     "load_model", "build_model", "save_checkpoint", "read_model_config", "ModelConfig", "PRESETS", "TouchAnything",
     "bundled_models",
     # running it frame by frame
-    "StreamingEngine", "EngineConfig", "LiveEngine", "Snapshot", "Prediction", "VIEW_NAMES",
+    "StreamingEngine", "EngineSetting", "parse_setting", "LiveEngine", "Snapshot", "Prediction", "VIEW_NAMES",
     # episodes
     "open_episode", "Episode", "ReplaySource", "ReplayConfig", "sample_episodes", "TactileLayout",
     # hand pose estimated from the camera (bare hands)

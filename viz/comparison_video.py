@@ -1,5 +1,5 @@
-"""Comparison frames (cameras on top; measured, predicted and their difference in the middle; metric and
-latency plots and the contact lamps at the bottom) and the video writer."""
+"""Comparison frames (cameras on top; measured, predicted (an ensemble's: and its members' spread) and their
+difference in the middle; metric and latency plots and the contact lamps at the bottom) and the video writer."""
 from __future__ import annotations
 
 from collections.abc import Collection
@@ -12,7 +12,15 @@ from touchanything.devices.episodes.video_io import VideoWriter, video_comment
 from touchanything.devices.output_safety import replacing
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.view_sets import view_label
-from touchanything.viz.pressure_panel import BACKGROUND, MAP_TITLES, dimmed, pressure_panel, put_text
+from touchanything.viz.pressure_panel import (
+    BACKGROUND,
+    MAP_TITLES,
+    SPREAD_HIGH,
+    SPREAD_TITLE,
+    dimmed,
+    pressure_panel,
+    put_text,
+)
 
 WIDTH, CAMERA_HEIGHT, PANEL_HEIGHT, STRIP_HEIGHT, FOOTER_HEIGHT = 1440, 270, 360, 150, 26
 CAPTION_COLOURS = ((235, 235, 235), (255, 180, 40))  # RGB: the model line, then a warning in amber
@@ -22,14 +30,17 @@ COMMENT = "touchanything comparison video"
 
 def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred: np.ndarray | None, footer: str,
                      strip: np.ndarray | None = None, hand3d: np.ndarray | None = None,
-                     caption: tuple[str, ...] = (), used: Collection[str] = VIEW_NAMES) -> np.ndarray:
+                     caption: tuple[str, ...] = (), used: Collection[str] = VIEW_NAMES,
+                     spread: np.ndarray | None = None) -> np.ndarray:
     """(806, 1440, 3) uint8: the three views (480×270 each), the measured | predicted | difference maps, `strip`
     (150, 1440, 3) and the footer line; without a strip (656, 1440, 3). `hand3d` (h, 1440, 3), the pressure on
     the 3D hands, goes below the panels (the frame grows by h).
 
     `caption`: lines at the foot of the panels (what the model is; the second line, a warning, in amber).
     `used`: the views the model takes anything from (`view_sets.views_used`); the others are dimmed and labelled
-    "… — not used". Absent views, ground truth or prediction leave labelled placeholders."""
+    "… — not used". `spread` (an ensemble's, (2, 21, 21)): a fourth panel, the members' spread on [0, SPREAD_HIGH],
+    right of the predicted maps (the four panels 360 wide). Absent views, ground truth or prediction leave
+    labelled placeholders."""
     strip_height = 0 if strip is None else STRIP_HEIGHT
     extra = 0 if hand3d is None else hand3d.shape[0]
     frame = np.empty((CAMERA_HEIGHT + PANEL_HEIGHT + extra + strip_height + FOOTER_HEIGHT, WIDTH, 3), np.uint8)
@@ -41,15 +52,7 @@ def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred:
             small = cv2.resize(image, (480, CAMERA_HEIGHT), interpolation=cv2.INTER_AREA)
             frame[:CAMERA_HEIGHT, x:x + 480] = small if view in used else dimmed(small)
         put_text(frame, label if image is not None or view not in used else f"{label}: no image", (x + 8, 22), 0.6)
-    panels = [(gt, MAP_TITLES["measured"], False, "no glove"), (pred, MAP_TITLES["predicted"], False, "no pose"),
-              (None if gt is None or pred is None else pred - gt, MAP_TITLES["error"], True, "n/a")]
-    for k, (grids, title, error, empty) in enumerate(panels):
-        x = k * 480
-        if grids is None:
-            put_text(frame, f"{title}: n/a", (x + 10, CAMERA_HEIGHT + 30), 0.6)
-            continue
-        frame[CAMERA_HEIGHT:CAMERA_HEIGHT + PANEL_HEIGHT, x:x + 480] = pressure_panel(grids, title, 480, PANEL_HEIGHT,
-                                                                                     error=error, empty=empty)
+    _draw_panels(frame, gt, pred, spread)
     top = CAMERA_HEIGHT + PANEL_HEIGHT
     for k, line in enumerate(reversed(caption)):
         put_text(frame, line, (10, top - 8 - 18 * k), 0.45, CAPTION_COLOURS[len(caption) - 1 - k])
@@ -59,6 +62,21 @@ def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred:
         frame[top + extra:top + extra + STRIP_HEIGHT] = strip
     put_text(frame, footer, (10, frame.shape[0] - 8), 0.5)
     return frame
+
+
+def _draw_panels(frame: np.ndarray, gt: np.ndarray | None, pred: np.ndarray | None, spread: np.ndarray | None) -> None:
+    """The map panels side by side under the cameras: measured | predicted [| spread] | difference."""
+    panels = [(gt, MAP_TITLES["measured"], False, "no glove", 1.0), (pred, MAP_TITLES["predicted"], False, "no pose", 1.0)]
+    panels += [(spread, SPREAD_TITLE, False, "no pose", SPREAD_HIGH)] if spread is not None else []
+    panels += [(None if gt is None or pred is None else pred - gt, MAP_TITLES["error"], True, "n/a", 1.0)]
+    width = WIDTH // len(panels)
+    for k, (grids, title, error, empty, high) in enumerate(panels):
+        x = k * width
+        if grids is None:
+            put_text(frame, f"{title}: n/a", (x + 10, CAMERA_HEIGHT + 30), 0.6)
+            continue
+        frame[CAMERA_HEIGHT:CAMERA_HEIGHT + PANEL_HEIGHT, x:x + width] = pressure_panel(
+            grids, title, width, PANEL_HEIGHT, error=error, empty=empty, high=high)
 
 
 def write_comparison_video(path: Path, frames) -> int:

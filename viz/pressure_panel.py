@@ -17,15 +17,19 @@ AXES = (17, 17, 34)
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 MAP_TITLES = {"measured": "measured pressure", "predicted": "predicted pressure", "error": "prediction − measured"}
 """What every user-facing text calls the three maps (the dashboard, the comparison video, Rerun)."""
+SPREAD_TITLE = "members' spread"
+"""What they call an ensemble's spread map (`Prediction.spread`)."""
+SPREAD_HIGH = 0.5
+"""The spread map's fixed scale is [0, SPREAD_HIGH]: the largest standard deviation values in [0, 1] can have."""
 HAND_LABELS = ("left hand", "right hand")
 """The maps' hand labels, [left, right]."""
 UNUSED_BRIGHTNESS = 0.35
 """How bright a camera frame the model does not use is drawn (`dimmed`)."""
 
 
-def hand_map(grid: np.ndarray, cell: int, error: bool = False) -> np.ndarray:
-    """(21, 21) grid → (21·cell, 21·cell, 3) uint8; pressure on [0, 1] or error on [−1, 1]."""
-    colours = apply(grid, ERROR_LUT, -1.0, 1.0, AXES) if error else apply(grid, PRESSURE_LUT, 0.0, 1.0, AXES)
+def hand_map(grid: np.ndarray, cell: int, error: bool = False, high: float = 1.0) -> np.ndarray:
+    """(21, 21) grid → (21·cell, 21·cell, 3) uint8; pressure on [0, high] or error on [−1, 1]."""
+    colours = apply(grid, ERROR_LUT, -1.0, 1.0, AXES) if error else apply(grid, PRESSURE_LUT, 0.0, high, AXES)
     return cv2.resize(colours, (21 * cell, 21 * cell), interpolation=cv2.INTER_NEAREST)
 
 
@@ -77,13 +81,14 @@ def unposed_as_nan(pressure: np.ndarray, hands_predicted: tuple[bool, bool]) -> 
 
 
 def pressure_panel(grids: np.ndarray, title: str, width: int, height: int, error: bool = False,
-                   outline: np.ndarray | None = None, threshold: float = 0.1, empty: str = "n/a") -> np.ndarray:
+                   outline: np.ndarray | None = None, threshold: float = 0.1, empty: str = "n/a",
+                   high: float = 1.0) -> np.ndarray:
     """(2, 21, 21) → (height, width, 3) panel: title, both hands side by side, a colour bar. `outline`
     (2, 21, 21), e.g. the measured pressure, draws its contact region (> threshold) as a contour; a hand
-    without any value reads `empty`."""
-    panel = _panel_frame(title, width, height, error).copy()
+    without any value reads `empty`; `high`: the top of the (non-error) scale (SPREAD_HIGH for a spread)."""
+    panel = _panel_frame(title, width, height, error, high).copy()
     cell, top = panel_cell(width, height), 40
-    maps = pressure_maps(grids, cell, error, outline, threshold, bar=False, empty=empty)
+    maps = pressure_maps(grids, cell, error, outline, threshold, bar=False, empty=empty, high=high)
     panel[top:top + maps.shape[0], MAP_GAP:MAP_GAP + maps.shape[1]] = maps
     return panel
 
@@ -102,10 +107,11 @@ def maps_width(cell: int) -> int:
 
 
 def pressure_maps(grids: np.ndarray, cell: int, error: bool = False, outline: np.ndarray | None = None,
-                  threshold: float = 0.1, bar: bool = True, empty: str = "n/a") -> np.ndarray:
+                  threshold: float = 0.1, bar: bool = True, empty: str = "n/a", high: float = 1.0) -> np.ndarray:
     """(2, 21, 21) → (21·cell, maps_width(cell), 3): both hand maps (optionally with the contact outline
     of `outline`) and, with `bar`, the colour bar; without titles (for the dashboard's textures). A hand
-    whose cells are all NaN is background with `empty` written on it (e.g. "no pose")."""
+    whose cells are all NaN is background with `empty` written on it (e.g. "no pose"); `high`: the top of the
+    (non-error) scale."""
     size = 21 * cell
     image = np.empty((size, maps_width(cell) if bar else 2 * size + MAP_GAP, 3), np.uint8)
     image[:, size:size + MAP_GAP] = BACKGROUND
@@ -116,7 +122,7 @@ def pressure_maps(grids: np.ndarray, cell: int, error: bool = False, outline: np
             image[:, left:left + size] = BACKGROUND
             put_text(image, empty, (left + size // 2 - 4 * len(empty), size // 2), 0.45)
             continue
-        image[:, left:left + size] = hand_map(grids[h], cell, error)
+        image[:, left:left + size] = hand_map(grids[h], cell, error, high)
         if outline is not None:
             draw_contact_outline(image[:, left:left + size], outline[h], cell, threshold)
     if bar:
@@ -125,7 +131,7 @@ def pressure_maps(grids: np.ndarray, cell: int, error: bool = False, outline: np
 
 
 @functools.lru_cache(maxsize=64)
-def _panel_frame(title: str, width: int, height: int, error: bool) -> np.ndarray:
+def _panel_frame(title: str, width: int, height: int, error: bool, high: float) -> np.ndarray:
     """Everything but the maps (drawn once per title and size: text rendering is the slow part)."""
     panel = np.empty((height, width, 3), np.uint8)
     panel[:] = BACKGROUND
@@ -136,7 +142,7 @@ def _panel_frame(title: str, width: int, height: int, error: bool) -> np.ndarray
     bar_left = MAP_GAP + 2 * (size + MAP_GAP)
     if bar_left + BAR_WIDTH <= width:
         panel[top:top + size, bar_left:bar_left + BAR_WIDTH] = colour_bar(size, error=error)
-        put_text(panel, "+1" if error else "1", (bar_left, top - 4), 0.35)
+        put_text(panel, "+1" if error else f"{high:g}", (bar_left, top - 4), 0.35)
         put_text(panel, "-1" if error else "0", (bar_left, top + size + 12), 0.35)
     panel.flags.writeable = False
     return panel

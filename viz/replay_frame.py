@@ -1,5 +1,5 @@
 """One frame of the replay comparison video: the cameras (the head camera with the hand skeletons and the
-shown pressure on their joints), the measured | predicted | difference maps, a bottom strip (rolling metrics,
+shown pressure on their joints), the measured | predicted [| members' spread] | difference maps, a bottom strip (rolling metrics,
 engine time per frame, contact lamps) and a footer with the engine setting, the frame, where the pose comes from,
 the prediction's status, the views it used (their view-set id) and the metrics. What the maps, the lamps, the
 plots and the footer say of the frame is its `FrameFacts` (`viz.frame_facts`)."""
@@ -52,11 +52,13 @@ class ReplayFrameRenderer:
         self.step_ms: list[float] = []
 
     def render(self, snapshot: Snapshot, truth: np.ndarray | None, shown: np.ndarray | None,
-               latest: Prediction | None, facts: FrameFacts, used: tuple[str, ...] = VIEW_NAMES) -> np.ndarray:
+               latest: Prediction | None, facts: FrameFacts, used: tuple[str, ...] = VIEW_NAMES,
+               spread: np.ndarray | None = None) -> np.ndarray:
         """The comparison frame of `snapshot`: `shown` is the prediction of this very frame (None when there
         is none), `latest` the newest prediction so far, `facts` this frame's (`viz.frame_facts`): which hands
         the maps show, the contact lamps and the metrics of the plots and the footer; `used`: the views the
-        model takes anything from (the others are marked "not used")."""
+        model takes anything from (the others are marked "not used"); `spread`: an ensemble's spread of this
+        frame (`Prediction.spread`), drawn beside the predicted maps (None: a single model, no panel)."""
         self._add(facts, latest)
         images = dict(snapshot.images)
         if "ego" in images:
@@ -64,7 +66,8 @@ class ReplayFrameRenderer:
         footer = footer_text(snapshot, self.total_frames, latest, facts, self.setting)
         hands = hand3d_panel(snapshot.joints, snapshot.joints_valid, truth, shown) if self.hand3d else None
         maps = None if shown is None else unposed_as_nan(shown, facts.posed)
-        return comparison_frame(images, truth, maps, footer, self._strip(facts), hands, self.caption, used)
+        spread = None if spread is None or shown is None else unposed_as_nan(spread, facts.posed)
+        return comparison_frame(images, truth, maps, footer, self._strip(facts), hands, self.caption, used, spread)
 
     def _add(self, facts: FrameFacts, prediction: Prediction | None) -> None:
         rolling = facts.rolling or {}

@@ -17,7 +17,8 @@ Every row is on two timelines: `frame` (the episode's frame index, or the live r
   one (21, 21) float16 depth image per hand (meter 1, fixed range 0–1, Turbo; NaN outside the layout), so that
   hovering a cell shows its pressure ("Val") and its grid position (x: column, y: row; the right hand's image
   placed 22 cells to the right). `pressure/difference`: predicted − measured on [−1, 1] (blue: too low, red: too
-  high), as a PNG.
+  high), as a PNG. `pressure/spread` (an ensemble's only, from its first spread on, with its view added to the
+  layout): the members' spread as a PNG on [0, SPREAD_HIGH] with `pressure/spread/{left,right}` beneath.
 - `contact/{measured,predicted}`: the official contact rule per hand, [left, right], 0 or 1, NaN (a gap) for a
   hand that map does not have (not predicted: no pose; no glove sample) — the frame's `FrameFacts`.
 - `metrics/{rolling,cumulative}`: the official metrics `SHOWN_METRICS` over the last 3 s and over everything so
@@ -47,8 +48,8 @@ from touchanything.devices.temporary_files import mark, temporary_path, unmark
 from touchanything.devices.view_sets import view_label
 from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
 from touchanything.viz.frame_facts import FrameFacts
-from touchanything.viz.pressure_panel import BACKGROUND, unposed_as_nan
-from touchanything.viz.rerun_blueprint import MAP_ENTITIES, SHOWN_METRICS, default_blueprint
+from touchanything.viz.pressure_panel import BACKGROUND, SPREAD_HIGH, unposed_as_nan
+from touchanything.viz.rerun_blueprint import MAP_ENTITIES, SHOWN_METRICS, SPREAD_ENTITY, default_blueprint
 from touchanything.viz.rerun_columns import ColumnBuffer
 from touchanything.viz.rerun_hands import HandSurfaces, hand_classes
 from touchanything.viz.rerun_serving import ANY, LOCALHOST, ServedAt, free_port
@@ -82,14 +83,14 @@ class RerunTarget:
     serve_host: str = LOCALHOST
 
 
-def map_image(grids: np.ndarray, lut: np.ndarray, low: float) -> np.ndarray:
-    """Both hands' (2, 21, 21) maps on the fixed scale [low, 1] of `lut`, side by side with a column between,
+def map_image(grids: np.ndarray, lut: np.ndarray, low: float, high: float = 1.0) -> np.ndarray:
+    """Both hands' (2, 21, 21) maps on the fixed scale [low, high] of `lut`, side by side with a column between,
     as a (21, 43, 4) RGBA image; cells outside the layout (NaN) are the dashboard's background (opaque: they
     cover the value images beneath), the gap between the hands is transparent."""
     values = np.full((21, 43), np.nan, np.float32)
     values[:, :21], values[:, VALUE_GAP:] = grids[0], grids[1]
     rgba = np.full((21, 43, 4), 255, np.uint8)
-    rgba[..., :3] = apply(values, lut, low, 1.0, BACKGROUND)
+    rgba[..., :3] = apply(values, lut, low, high, BACKGROUND)
     rgba[:, 21:VALUE_GAP, 3] = 0
     return rgba
 
@@ -130,6 +131,8 @@ class RerunRecording:
         self._unused: dict[str, bool] = {}
         """Per view: marked "not used" now."""
         self._surfaces = HandSurfaces(self._rows)
+        self._spread = False
+        """An ensemble's spread has been logged (its entities and view are set up)."""
         self._log_static()
 
     @property
@@ -159,14 +162,18 @@ class RerunRecording:
         for kind in MAP_ENTITIES.values():
             log(f"pressure/{kind}", rr.EncodedImage.from_fields(media_type="image/png", magnification_filter="nearest",
                                                                 opacity=1.0, draw_order=MAP_DRAW_ORDER), static=True)
+        for kind in ("measured", "predicted"):
+            self._log_value_images(kind, 1.0)
+
+    def _log_value_images(self, kind: str, high: float) -> None:
+        """The static part of `pressure/{kind}/{left,right}`: (21, 21) VALUE_DTYPE depth images on [0, high]."""
         value_type = rr.encodings.ChannelDatatype.from_np_dtype(np.dtype(VALUE_DTYPE))
         value_format = rr.components.ImageFormat(width=21, height=21, channel_datatype=value_type)
-        for kind in ("measured", "predicted"):
-            for hand in HANDS:
-                log(f"pressure/{kind}/{hand}", rr.DepthImage.from_fields(
-                    format=value_format, meter=1.0, depth_range=(0.0, 1.0), colormap="turbo", magnification_filter="nearest",
-                    draw_order=VALUE_DRAW_ORDER), static=True)
-            log(f"pressure/{kind}/right", rr.Transform3D(translation=(VALUE_GAP, 0.0, 0.0)), static=True)
+        for hand in HANDS:
+            self._stream.log(f"pressure/{kind}/{hand}", rr.DepthImage.from_fields(
+                format=value_format, meter=1.0, depth_range=(0.0, high), colormap="turbo", magnification_filter="nearest",
+                draw_order=VALUE_DRAW_ORDER), static=True)
+        self._stream.log(f"pressure/{kind}/right", rr.Transform3D(translation=(VALUE_GAP, 0.0, 0.0)), static=True)
 
     def log_videos(self, videos: Mapping[str, Path], frames: int, times_s: np.ndarray,
                    sizes: Mapping[str, tuple[int, int]]) -> set[str]:
@@ -218,16 +225,19 @@ class RerunRecording:
                                quaternion=xyzw[None])
 
     def log_prediction(self, frame: int, time_s: float, predicted: np.ndarray | None, facts: FrameFacts, joints: np.ndarray,
-                       valid: np.ndarray, measured: np.ndarray | None, latency_ms: float | None, step_ms: float | None) -> None:
+                       valid: np.ndarray, measured: np.ndarray | None, latency_ms: float | None, step_ms: float | None,
+                       spread: np.ndarray | None = None) -> None:
         """The prediction for `frame` ((2, 21, 21) or None; a hand `facts` says was not predicted is shown as
         none), painted on that frame's joints; its difference to `measured`; its contact and the running official
-        metrics as the frame's `facts` hold them; the latency and the engine step (None: not known)."""
+        metrics as the frame's `facts` hold them; the latency and the engine step (None: not known); an
+        ensemble's `spread` (2, 21, 21) beside it (None: a single model's prediction, or none)."""
         at = (frame, time_s)
         if predicted is not None:
             predicted = unposed_as_nan(predicted, facts.posed)
         self._log_map("predicted", predicted, PRESSURE_LUT, 0.0, at)
         self._log_values("predicted", predicted, at)
         self._surfaces.paint("predicted", at, joints, valid, predicted)
+        self._log_spread(None if predicted is None or spread is None else unposed_as_nan(spread, facts.posed), at)
         if facts.predicted:
             self._rows.put("contact/predicted", rr.Scalars, *at, scalars=facts.contact("predicted"))
         difference = None if predicted is None or measured is None else predicted - measured
@@ -238,6 +248,19 @@ class RerunRecording:
             if values is not None:
                 scalars = np.array([np.nan if values[n] is None else values[n] for n in SHOWN_METRICS], np.float64)
                 self._rows.put(f"metrics/{kind}", rr.Scalars, *at, scalars=scalars)
+
+    def _log_spread(self, spread: np.ndarray | None, at: tuple[int, float]) -> None:
+        """The spread map and values (None: cleared once there has been one); the first adds the spread's
+        entities and its view to the layout."""
+        if spread is not None and not self._spread:
+            self._spread = True
+            self._stream.log(f"pressure/{SPREAD_ENTITY}", rr.EncodedImage.from_fields(
+                media_type="image/png", magnification_filter="nearest", opacity=1.0, draw_order=MAP_DRAW_ORDER), static=True)
+            self._log_value_images(SPREAD_ENTITY, SPREAD_HIGH)
+            self._stream.send_blueprint(default_blueprint(spread=True))
+        if self._spread:
+            self._log_map(SPREAD_ENTITY, spread, PRESSURE_LUT, 0.0, at, SPREAD_HIGH)
+            self._log_values(SPREAD_ENTITY, spread, at)
 
     def _mark_unused(self, used: Collection[str], at: tuple[int, float]) -> None:
         """Show the "not used" label on the views outside `used`, and take it off the others, where that changed
@@ -280,11 +303,12 @@ class RerunRecording:
             self._rows.put("cameras/ego/hands", rr.Points2D, *at, positions=pixels.astype(np.float32), class_ids=classes,
                            keypoint_ids=keypoints)
 
-    def _log_map(self, kind: str, grids: np.ndarray | None, lut: np.ndarray, low: float, at: tuple[int, float]) -> None:
+    def _log_map(self, kind: str, grids: np.ndarray | None, lut: np.ndarray, low: float, at: tuple[int, float],
+                 high: float = 1.0) -> None:
         if grids is None:
             self._rows.clear(f"pressure/{kind}", *at)
         else:
-            ok, png = cv2.imencode(".png", cv2.cvtColor(map_image(grids, lut, low), cv2.COLOR_RGBA2BGRA))
+            ok, png = cv2.imencode(".png", cv2.cvtColor(map_image(grids, lut, low, high), cv2.COLOR_RGBA2BGRA))
             if ok:
                 self._rows.put(f"pressure/{kind}", rr.EncodedImage, *at, blob=[png.tobytes()])
 

@@ -9,10 +9,10 @@ from pathlib import Path
 
 from touchanything.app.sessions.bundled import OUTPUT_DIR, SAMPLE_DIR, sample_episodes
 from touchanything.app.sessions.engine_choice import (
-    ModelChoice,
     add_device_argument,
     add_onnx_argument,
     choice_inputs,
+    choose,
     default_checkpoint,
     export_choice,
 )
@@ -20,7 +20,6 @@ from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_t
 from touchanything.app.sessions.setting_choice import add_setting_arguments, picked_setting, setting_request
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import add_overwrite_argument
-from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.display import display_problem
 
 DEMO_VIDEO = OUTPUT_DIR / "demo.mp4"
@@ -47,7 +46,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 TOUR = ("Workbench", "Office", "Home")
 """The order in which the demo tours the bundled sample's scenes: where the model is right first (Workbench:
-V-IoU 0.74, C-IoU 0.84 with nano), then where it misses (Home: 0.05 / 0.09); other scenes after, by name."""
+V-IoU 0.76, C-IoU 0.84 with pico), then where it misses (Home: 0.13 / 0.26); other scenes after, by name."""
 
 
 def tour_order(paths: list[Path]) -> list[Path]:
@@ -66,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         paths = paths[:1]
     request = setting_request(args)
     given = None if request else (export_choice(args.onnx, args.device) if args.onnx is not None
-                                  else ModelChoice(default_checkpoint(), device=args.device))
+                                  else choose(default_checkpoint(), device=args.device))
     inputs = (*paths, *(request.inputs if request else choice_inputs(given)))
     rerun = rerun_target(args, inputs)
     problem = None if args.headless else display_problem()
@@ -76,11 +75,10 @@ def run(args: argparse.Namespace) -> int:
         check_video_output(args.out, inputs, args.overwrite)
     picked = picked_setting(request, args.device)
     choice = picked.model_choice(args.device) if picked else given
-    views = picked.row.setting.views if picked else VIEW_NAMES
     if args.headless or problem:
-        replay_to_video(paths, choice, views, args.out, args.hand3d, rerun)
+        replay_to_video(paths, choice, args.out, args.hand3d, rerun)
         print(f"watch it with any video player: {args.out}")
     else:
-        stats = replay_in_dashboard(paths[0], choice, views, rerun=rerun, loop=True, atlas=args.atlas, tour=paths[1:]).stats
+        stats = replay_in_dashboard(paths[0], choice, rerun=rerun, loop=True, atlas=args.atlas, tour=paths[1:]).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

@@ -4,7 +4,6 @@ with a status line per second (no display needed)."""
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 from pathlib import Path
 
@@ -53,19 +52,18 @@ def open_live_session(scene_path: Path, device: str | None = None, picked: Picke
     from touchanything.devices.snapshot import VIEW_NAMES
 
     scene = read_scene(scene_path)
-    choice = scene.model if device is None else dataclasses.replace(scene.model, device=device)
+    choice = scene.model if device is None else scene.model.with_setting(device=device)
     if picked is not None:
-        choice = picked.model_choice(choice.device)
+        choice = picked.model_choice(choice.setting.device)
     elif onnx is not None:
-        choice = export_choice(onnx, choice.device)
+        choice = export_choice(onnx, choice.setting.device)
     try:
-        engine, message = build_engine(choice, VIEW_NAMES), ""
+        engine, message = build_engine(choice.with_setting(views=VIEW_NAMES)), ""
     except UserError as exc:
         engine, message = None, f"no prediction: {exc}"
         print(message)
     session = LiveSession(LiveRig(scene), engine, choice, message)
-    if picked is not None:
-        session.set_views(picked.row.setting.views)
+    session.set_views(choice.setting.views)
     return session
 
 

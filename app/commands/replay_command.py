@@ -12,22 +12,23 @@ from touchanything.app.sessions.engine_choice import (
     add_device_argument,
     add_onnx_argument,
     choice_inputs,
+    choose,
     default_checkpoint,
     export_choice,
     view_set_argument,
 )
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
-from touchanything.app.sessions.setting_choice import PickedSetting, add_setting_arguments, picked_setting, setting_request
+from touchanything.app.sessions.setting_choice import add_setting_arguments, picked_setting, setting_request
 from touchanything.devices.output_safety import add_overwrite_argument
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.view_sets import VIEW_HELP
-from touchanything.inference.engine.engine_config import RUNTIMES
+from touchanything.inference.engine.engine_setting import RUNTIMES
 from touchanything.viz.display import display_problem
 
 
 def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
     """The model, runtime, views and device options, `--onnx`, and `--setting` (which decides all but the device)."""
-    parser.add_argument("--checkpoint", type=Path, help="model checkpoint (default: the bundled nano model; with --onnx "
+    parser.add_argument("--checkpoint", type=Path, help="model checkpoint (default: the bundled pico model; with --onnx "
                                                         "the checkpoint the export was made from)")
     parser.add_argument("--config", type=Path, help="config.yaml (default: beside the checkpoint)")
     parser.add_argument("--views", nargs="+", type=view_set_argument, metavar="VIEWS",
@@ -58,20 +59,15 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def model_choice(args: argparse.Namespace) -> ModelChoice:
-    """The options' model and tier: the `--onnx` export, else the checkpoint (the bundled nano, torch fp32 by
-    default)."""
+def given_choice(args: argparse.Namespace) -> ModelChoice:
+    """The options' model and setting: the `--onnx` export, else the checkpoint (the bundled pico, torch fp32 by
+    default), with the union of the `--views` values (default all)."""
+    views = tuple(v for v in VIEW_NAMES if any(v in chosen for chosen in args.views or [VIEW_NAMES]))
     if args.onnx is not None:
-        return export_choice(args.onnx, args.device, args.checkpoint, args.config, args.runtime, args.precision)
-    return ModelChoice(args.checkpoint or default_checkpoint(), args.config, args.runtime or "torch",
-                       args.precision or "fp32", args.device)
-
-
-def selected_views(args: argparse.Namespace, picked: PickedSetting | None) -> tuple[str, ...]:
-    """The `--setting`'s views, else the union of the `--views` values (default all), in the official order."""
-    if picked is not None:
-        return picked.row.setting.views
-    return tuple(v for v in VIEW_NAMES if any(v in views for views in args.views or [VIEW_NAMES]))
+        return export_choice(args.onnx, args.device, args.checkpoint, args.config, args.runtime, args.precision,
+                             views=views)
+    return choose(args.checkpoint or default_checkpoint(), args.config, runtime=args.runtime or "torch",
+                  precision=args.precision or "fp32", device=args.device, views=views)
 
 
 def default_video(path: Path) -> Path:
@@ -84,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
 
     request = setting_request(args)
-    given = None if request else model_choice(args)
+    given = None if request else given_choice(args)
     inputs = (args.episode, *(request.inputs if request else choice_inputs(given)))
     rerun = rerun_target(args, inputs)
     headless = args.headless or args.out is not None
@@ -92,13 +88,13 @@ def run(args: argparse.Namespace) -> int:
     if headless:
         check_video_output(out, inputs, args.overwrite)
     picked = picked_setting(request, args.device)
-    choice, views = picked.model_choice(args.device) if picked else given, selected_views(args, picked)
+    choice = picked.model_choice(args.device) if picked else given
     if not headless and rerun is not None and (problem := display_problem()):
         print(f"no dashboard: {problem}. Writing the Rerun recording only (--headless: the comparison video too).")
-        replay_to_video([args.episode], choice, views, None, rerun=rerun)
+        replay_to_video([args.episode], choice, None, rerun=rerun)
     elif headless:
-        replay_to_video([args.episode], choice, views, out, args.hand3d, rerun)
+        replay_to_video([args.episode], choice, out, args.hand3d, rerun)
     else:
-        stats = replay_in_dashboard(args.episode, choice, views, rerun=rerun, atlas=args.atlas).stats
+        stats = replay_in_dashboard(args.episode, choice, rerun=rerun, atlas=args.atlas).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

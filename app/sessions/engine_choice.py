@@ -3,66 +3,72 @@ checkpoint, and the runtime tiers offered by the command line and the dashboard'
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from touchanything.app.sessions.bundled import MODELS_DIR, bundled_models
 from touchanything.devices.errors import UserError
 from touchanything.devices.view_sets import parse_view_set
-from touchanything.inference.engine.engine_config import EngineConfig
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.onnx_manifest import export_source
-from touchanything.inference.evaluation.bench_setting import BenchSetting
 from touchanything.inference.model.model_card import read_card
 from touchanything.inference.model.torch_device import DEVICE_HELP, device_label
 
 if TYPE_CHECKING:
     import torch
 
+    from touchanything.inference.engine.ensemble_engine import EnsembleEngine
     from touchanything.inference.engine.streaming_engine import StreamingEngine
 
-DEFAULT_MODEL = "nano"
-CPU_TIERS = ("torch fp32", "torch bf16", "onnx fp32", "onnx int8")
-"""Runtime + precision pairs that run on a CPU (fp16 and tf32 need a GPU)."""
-GPU_TIERS = ("torch fp32", "torch tf32", "torch bf16", "torch fp16")
-"""Runtime + precision pairs that run on a CUDA GPU (ONNX Runtime here is the CPU build)."""
+DEFAULT_MODEL = "pico"
+CPU_TIERS = ("torch-fp32", "torch-bf16", "onnx-fp32", "onnx-int8")
+"""Runtime-precision pairs that run on a CPU (fp16 and tf32 need a GPU), spelled as in a setting's name."""
+GPU_TIERS = ("torch-fp32", "torch-tf32", "torch-bf16", "torch-fp16")
+"""Runtime-precision pairs that run on a CUDA GPU (ONNX Runtime here is the CPU build)."""
 
 
 @dataclass(frozen=True)
 class ModelChoice:
-    """A checkpoint (config.yaml beside it unless `config` is given), its runtime tier, the `--device` setting
-    (auto, cpu, cuda, cuda:N), the engine's prediction rate (every k-th frame) and output position, and the
-    export folder the ONNX tiers run (`onnx_dir`, checked against the checkpoint's weights; None: the user
-    cache's export of the checkpoint)."""
+    """Where the model's files are — the checkpoint (config.yaml beside it unless `config` is given) and the
+    export folder an ONNX setting runs (`onnx_dir`, checked against the checkpoint's weights; None: the user
+    cache's export of the checkpoint) — and the engine `setting` it runs at, whose `model` is the checkpoint's
+    short name (`model_key`). Make one with `choose`."""
 
     checkpoint: Path
+    setting: EngineSetting
     config: Path | None = None
-    runtime: str = "torch"
-    precision: str = "fp32"
-    device: str = "auto"
-    every: int = 1
-    output: str = "newest"
     onnx_dir: Path | None = None
 
-    @property
-    def tier(self) -> str:
-        return f"{self.runtime} {self.precision}"
+    def with_setting(self, **changes) -> ModelChoice:
+        """The same files at a setting with `changes` (`runtime=`, `every=`, `views=`, …)."""
+        return replace(self, setting=replace(self.setting, **changes))
 
     def with_tier(self, tier: str) -> ModelChoice:
-        runtime, precision = tier.split()
-        return replace(self, runtime=runtime, precision=precision)
+        """The same files at another tier (`onnx-int8`)."""
+        return replace(self, setting=self.setting.with_tier(tier))
 
     def with_checkpoint(self, checkpoint: Path) -> ModelChoice:
-        """Another checkpoint (its own config.yaml, and for ONNX the user cache's export of it) at the same tier
-        and device; the same checkpoint keeps its config and export folder."""
+        """Another checkpoint (its own config.yaml, and for ONNX the user cache's export of it) at the same
+        setting; the same checkpoint keeps its config and export folder."""
         if Path(checkpoint).resolve() == self.checkpoint.resolve():
             return self
-        return replace(self, checkpoint=checkpoint, config=None, onnx_dir=None)
+        return choose(checkpoint, **_knobs(self.setting))
 
     @property
     def runs_export(self) -> bool:
         """Whether the engine runs the graphs of the export folder `onnx_dir`."""
-        return self.runtime == "onnx" and self.onnx_dir is not None
+        return self.setting.runtime == "onnx" and self.onnx_dir is not None
+
+
+def _knobs(setting: EngineSetting) -> dict:
+    return {f.name: getattr(setting, f.name) for f in fields(setting) if f.name != "model"}
+
+
+def choose(checkpoint: Path, config: Path | None = None, onnx_dir: Path | None = None, **knobs) -> ModelChoice:
+    """The checkpoint's files at the setting of `knobs` (EngineSetting's fields but `model`, which is the
+    checkpoint's `model_key`); UserError for a bad knob."""
+    return ModelChoice(Path(checkpoint), EngineSetting(model_key(Path(checkpoint)), **knobs), config, onnx_dir)
 
 
 def add_device_argument(parser: argparse.ArgumentParser, default: str | None = "auto") -> None:
@@ -92,14 +98,15 @@ def add_onnx_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def export_choice(folder: Path, device: str = "auto", checkpoint: Path | None = None, config: Path | None = None,
-                  runtime: str | None = None, precision: str | None = None) -> ModelChoice:
+                  runtime: str | None = None, precision: str | None = None, **knobs) -> ModelChoice:
     """`--onnx DIR`: the export in `folder` on ONNX Runtime (`precision`, default fp32), with `checkpoint`, else
-    the checkpoint the export was made from (else the bundled default); the weights are checked against the
-    export when the engine is built. UserError when `runtime` is not onnx, or `folder` is no export."""
+    the checkpoint the export was made from (else the bundled default), at the setting's other `knobs`; the
+    weights are checked against the export when the engine is built. UserError when `runtime` is not onnx, or
+    `folder` is no export."""
     if runtime not in (None, "onnx"):
         raise UserError(f"{folder}: an ONNX export runs on the onnx runtime, not {runtime}")
     source = checkpoint or export_source(folder) or default_checkpoint()
-    return ModelChoice(source, config, "onnx", precision or "fp32", device, onnx_dir=folder)
+    return choose(source, config, folder, runtime="onnx", precision=precision or "fp32", device=device, **knobs)
 
 
 def choice_inputs(choice: ModelChoice) -> tuple[Path, ...]:
@@ -121,15 +128,10 @@ def model_name(choice: ModelChoice) -> str:
     return bundled.get(choice.checkpoint.resolve(), str(choice.checkpoint))
 
 
-def model_key(choice: ModelChoice) -> str:
+def model_key(checkpoint: Path) -> str:
     """The model's short name: the bundled model's folder name, else the checkpoint's folder name."""
     bundled = {path.resolve(): name for name, path in bundled_models().items()}
-    return bundled.get(choice.checkpoint.resolve(), choice.checkpoint.resolve().parent.name)
-
-
-def setting_name(choice: ModelChoice, views: tuple[str, ...]) -> str:
-    """The engine setting's name in the atlas's spelling (`nano/onnx-int8/all`), whatever chose it."""
-    return BenchSetting(model_key(choice), choice.runtime, choice.precision, views, choice.every, choice.output).name()
+    return bundled.get(checkpoint.resolve(), checkpoint.resolve().parent.name)
 
 
 def model_label(choice: ModelChoice, engine: StreamingEngine | None = None) -> str:
@@ -138,7 +140,7 @@ def model_label(choice: ModelChoice, engine: StreamingEngine | None = None) -> s
     exports/nano on cpu)")."""
     export = f" from {choice.onnx_dir}" if choice.runs_export else ""
     where = f" on {device_label(engine.runtime.device)}" if engine is not None else ""
-    return f"{model_name(choice)} ({choice.tier}{export}{where})"
+    return f"{model_name(choice)} ({choice.setting.tier}{export}{where})"
 
 
 def illustrative_note(choice: ModelChoice, camera_pose: bool) -> str:
@@ -151,13 +153,17 @@ def illustrative_note(choice: ModelChoice, camera_pose: bool) -> str:
     return "illustrative only: bare-hand poses from the camera, model trained on simulated gloved hands"
 
 
-def build_engine(choice: ModelChoice, views: tuple[str, ...]) -> StreamingEngine:
-    """Load the checkpoint and build its engine (an ONNX tier runs `onnx_dir`'s graphs, checked against the
-    checkpoint, else exports its graphs into the user cache on first use); a bad checkpoint, config, tier or
-    export raises UserError."""
-    from touchanything.inference.engine.streaming_engine import StreamingEngine  # imported where used: --help loads this module
+def build_engine(choice: ModelChoice) -> StreamingEngine | EnsembleEngine:
+    """Load the checkpoint and build its engine at the choice's setting (an ONNX tier runs `onnx_dir`'s graphs,
+    checked against the checkpoint, else exports its graphs into the user cache on first use); with
+    `members` > 1 the engine of the checkpoint's ensemble (`ensemble_engine`, `onnx_dir` for member 1 only). A
+    bad checkpoint, config, tier, export or ensemble raises UserError."""
+    # imported where used: --help loads this module
+    from touchanything.inference.engine.ensemble_engine import load_ensemble
+    from touchanything.inference.engine.streaming_engine import StreamingEngine
     from touchanything.inference.model.checkpoint import load_model
 
-    config = EngineConfig(runtime=choice.runtime, precision=choice.precision, device=choice.device,
-                          onnx_dir=choice.onnx_dir, views=views, every=choice.every, output=choice.output).check()
-    return StreamingEngine(load_model(choice.checkpoint, choice.config), config)
+    choice.setting.resolved_device()  # an absent device is named before the model loads
+    if choice.setting.members > 1:
+        return load_ensemble(choice.checkpoint, choice.setting, choice.config, choice.onnx_dir)
+    return StreamingEngine(load_model(choice.checkpoint, choice.config), choice.setting, onnx_dir=choice.onnx_dir)

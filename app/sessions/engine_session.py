@@ -26,7 +26,6 @@ from touchanything.app.sessions.engine_choice import (
     build_engine,
     illustrative_note,
     model_label,
-    setting_name,
     tiers_for,
 )
 from touchanything.app.sessions.rerun_sink import RerunSink
@@ -220,9 +219,16 @@ class EngineSession:
                 history={name: np.array(values, np.float64) for name, values in self._history.items()},
                 stage_ms=self._stages.means(), engine_fps=0.0 if paused else self._predictions.rate(), sources=tuple(rows),
                 playback=playback, model=self._model_line(snapshot), message=self.message,
-                recording=self.recording_status(), setting=setting_name(self.choice, self.views) if self.live else "",
+                recording=self.recording_status(), setting=self._setting_name(),
                 step_p99_ms=float(np.percentile(self._steps, 99)) if len(self._steps) >= MIN_STEPS else None,
                 atlas=self.atlas, atlas_note=self.atlas_note)
+
+    def _setting_name(self) -> str:
+        """The running setting's name with the views switched on ("" without a model or without the head camera:
+        then nothing is predicted)."""
+        if self.live is None or "ego" not in self.views:
+            return ""
+        return self.choice.with_setting(views=self.views).setting.name()
 
     def _views_used(self) -> tuple[str, ...]:
         """The views the running model takes anything from (none without a model)."""
@@ -269,7 +275,7 @@ class EngineSession:
         return tiers_for(self.live.engine.runtime.device) if self.live is not None else CPU_TIERS
 
     def current_model(self) -> tuple[str, str]:
-        return self._bundled_name() or str(self.choice.checkpoint), self.choice.tier
+        return self._bundled_name() or str(self.choice.checkpoint), self.choice.setting.tier
 
     def _bundled_name(self) -> str | None:
         for name, path in bundled_models().items():
@@ -284,11 +290,11 @@ class EngineSession:
         self._switch((self.choice.with_checkpoint(path) if path is not None else self.choice).with_tier(tier))
 
     def current_rate(self) -> int:
-        return self.choice.every
+        return self.choice.setting.every
 
     def set_rate(self, every: int) -> None:
         """Predict every `every`-th frame from now on (the engine is rebuilt on a background thread)."""
-        self._switch(dataclasses.replace(self.choice, every=every))
+        self._switch(self.choice.with_setting(every=every))
 
     def _switch(self, choice: ModelChoice) -> None:
         if self._loading:
@@ -296,13 +302,13 @@ class EngineSession:
             return
         self._loading = True
         first_use = " (an ONNX tier's first use exports its graphs in the background: about 15 s)" \
-            if choice.runtime == "onnx" and choice.onnx_dir is None else ""
+            if choice.setting.runtime == "onnx" and choice.onnx_dir is None else ""
         self.message = f"loading {model_label(choice)}…{first_use}"
         threading.Thread(target=self._load, args=(choice,), name="touchanything-load", daemon=True).start()
 
     def _load(self, choice: ModelChoice) -> None:
         try:
-            engine = build_engine(choice, VIEW_NAMES)
+            engine = build_engine(choice.with_setting(views=VIEW_NAMES))
         except (UserError, OSError, RuntimeError) as exc:
             self.message = f"kept {self._model}: {exc}"
             return

@@ -137,7 +137,7 @@ def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: Replay
     if rerun is not None:
         log_episode_videos(rerun, episode, source.config.views)
     latest: Prediction | None = None
-    used = views_used(engine.config.views, engine.blank)
+    used = views_used(engine.setting.views, engine.blank)
     with contextlib.closing(source):
         for snapshot in source:
             summary.add_pose(snapshot)
@@ -161,7 +161,8 @@ def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: Replay
             if rerun is not None:
                 _log_frame(rerun, episode, snapshot, truth, this if shown is not None else None, facts, used)
             progress(snapshot.frame_index)
-            yield None if renderer is None else renderer.render(snapshot, truth, shown, latest, facts, used)
+            spread = None if this is None else this.spread
+            yield None if renderer is None else renderer.render(snapshot, truth, shown, latest, facts, used, spread)
 
 
 def log_episode_videos(rerun: RerunRecording, episode: Episode, views: tuple[str, ...]) -> None:
@@ -180,7 +181,8 @@ def _log_frame(rerun: RerunRecording, episode: Episode, snapshot: Snapshot, trut
                           facts, snapshot.trackers, used)
     if prediction is not None:
         rerun.log_prediction(snapshot.frame_index, time_s, prediction.pressure, facts, snapshot.joints,
-                             snapshot.joints_valid, truth, prediction.latency_ms, prediction.timings_ms.get("total"))
+                             snapshot.joints_valid, truth, prediction.latency_ms, prediction.timings_ms.get("total"),
+                             prediction.spread)
 
 
 def export_replay(sources: list[ReplaySource], engine: StreamingEngine, out: Path | None,

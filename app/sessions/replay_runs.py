@@ -15,7 +15,6 @@ from touchanything.app.sessions.engine_choice import (
     illustrative_note,
     model_label,
     model_name,
-    setting_name,
 )
 from touchanything.app.sessions.episode_summary import episode_lines
 from touchanything.app.sessions.replay_export import ReplaySummary, export_replay, log_episode_videos, tour_lines
@@ -34,13 +33,13 @@ from touchanything.viz.display import display_problem
 from touchanything.viz.rerun_recording import RerunTarget
 
 
-def replay_to_video(paths: Sequence[Path], choice: ModelChoice, views: tuple[str, ...], out: Path | None,
+def replay_to_video(paths: Sequence[Path], choice: ModelChoice, out: Path | None,
                     hand3d: bool = False, rerun: RerunTarget | None = None) -> list[ReplaySummary]:
-    """Export the episodes, one after the other, into the comparison video `out` (None: none; `hand3d`: with the
-    3D hands panel) and the Rerun recording `rerun` (one episode); prints each episode and its summary, for
+    """Export the episodes, one after the other, through the choice's setting into the comparison video `out`
+    (None: none; `hand3d`: with the 3D hands panel) and the Rerun recording `rerun` (one episode); prints each episode and its summary, for
     several the overall one, and where the outputs are. The outputs were checked by the caller
     (`check_video_output`, `rerun_target`)."""
-    engine = build_engine(choice, views)
+    engine, views = build_engine(choice), choice.setting.views
     with contextlib.ExitStack() as opened:
         episodes = [opened.enter_context(open_episode(path)) for path in paths]
         for path, episode in zip(paths, episodes):
@@ -49,7 +48,7 @@ def replay_to_video(paths: Sequence[Path], choice: ModelChoice, views: tuple[str
         camera = any(pose_source_for(e) == "camera" for e in episodes)
         model = tuple(line for line in (model_name(choice), illustrative_note(choice, camera)) if line)
         tour = [f"episode {k + 1} of {len(paths)}: {episode_name(e)}" for k, e in enumerate(episodes)] if len(paths) > 1 else []
-        setting = setting_name(choice, views)
+        setting = choice.setting.name()
         footers = ([f"{setting} · episode {k + 1}/{len(paths)} {e.scene}/{e.task}" for k, e in enumerate(episodes)]
                    if tour else [setting])
         for k, episode in enumerate(episodes):
@@ -91,10 +90,10 @@ def check_video_output(out: Path, inputs: Iterable[Path | None], overwrite: bool
     check_output(out, inputs, overwrite, own=is_comparison_video)
 
 
-def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...], max_frames: int | None = None,
+def replay_in_dashboard(path: Path, choice: ModelChoice, max_frames: int | None = None,
                         screenshot: Path | None = None, rerun: RerunTarget | None = None,
                         loop: bool = False, atlas: Path | None = None, tour: Sequence[Path] = ()) -> Dashboard:
-    """Play the episode in the dashboard until its window closes (or `max_frames` were rendered; then
+    """Play the episode in the dashboard (at the choice's setting) until its window closes (or `max_frames` were rendered; then
     `screenshot` is saved); returns the closed dashboard (its stats, screenshots and session). A model
     that fails to load is reported in the dashboard, which then shows the cameras and the measured
     pressure only. `rerun`: everything shown also goes into that Rerun recording. `loop`: play the
@@ -108,12 +107,12 @@ def replay_in_dashboard(path: Path, choice: ModelChoice, views: tuple[str, ...],
         if problem := display_problem():
             raise UserError(f"cannot open the dashboard: {problem}; use --headless to write a video instead")
         try:
-            engine, message = build_engine(choice, VIEW_NAMES), ""
+            engine, message = build_engine(choice.with_setting(views=VIEW_NAMES)), ""
         except UserError as exc:
             engine, message = None, f"no prediction: {exc}"
             print(message)
         session = ReplaySession(episode, engine, choice, message, pose_source_for(episode), loop, others)
-        session.set_views(views)
+        session.set_views(choice.setting.views)
         if atlas is not None:
             session.use_atlas(atlas)
         recording = rerun and open_recording(rerun, f"replay {episode_name(episode)}", session_properties(choice, engine, episode))

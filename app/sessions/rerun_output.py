@@ -110,8 +110,9 @@ def episode_name(episode: Episode) -> str:
 
 
 def session_properties(choice: ModelChoice, engine: StreamingEngine | None, episode: Episode | None = None) -> dict[str, str]:
-    """What a recording says about itself: the model and, for a replay, the episode."""
+    """What a recording says about itself: the model, the engine setting and, for a replay, the episode."""
     properties = {"model": model_label(choice, engine) if engine is not None else "no model"}
+    properties |= {"setting": choice.setting.name()} if engine is not None else {}
     if episode is not None:
         properties |= {"episode": str(episode.path), "frames": str(episode.num_frames), "fps": f"{episode.fps:g}"}
     return properties

@@ -74,7 +74,7 @@ class RerunSink:
         def job() -> None:
             self.recording.log_prediction(prediction.frame_index, self.time_of(snapshot), prediction.pressure, facts,
                                           snapshot.joints, snapshot.joints_valid, truth, prediction.latency_ms,
-                                          prediction.timings_ms.get("total"))
+                                          prediction.timings_ms.get("total"), prediction.spread)
         self._put(job)
 
     def _run(self) -> None:

@@ -12,9 +12,10 @@
     [trackers]            kind = "openvr" (the default); rate_hz; [trackers.roles] serial = "chest" |
                           "left_wrist" | "right_wrist"
     [pose]                the calibration that brings mocap joints into the head-camera frame
-    [model]               checkpoint, runtime, precision, device (default: the bundled nano model, torch fp32,
-                          device auto: the first CUDA GPU when there is one, else the CPU); onnx_dir = an
-                          export-onnx folder to run (runtime onnx; checkpoint: the one it was exported from)
+    [model]               checkpoint, config, and the engine setting's runtime, precision, views, every, output,
+                          invalid_hands, device (default: the bundled pico model, torch fp32, device auto: the
+                          first CUDA GPU when there is one, else the CPU); onnx_dir = an export-onnx folder to
+                          run (runtime onnx; checkpoint: the one it was exported from)
     [simulator]           episode = a recorded episode the simulated rig replays through the real
                           protocols (pty gloves, Rokoko UDP to [hands]; cameras are its video files in
                           [cameras]); link_dir for the gloves' serial links
@@ -32,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from touchanything.app.sessions.engine_choice import ModelChoice, default_checkpoint, export_choice
+from touchanything.app.sessions.engine_choice import ModelChoice, choose, default_checkpoint, export_choice
 from touchanything.app.sessions.scene_values import check_types
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig
 from touchanything.devices.errors import UserError
@@ -44,7 +45,10 @@ from touchanything.devices.rig.recorder import valid_fsync_s
 from touchanything.devices.rig.rig_clock import RigClockConfig
 from touchanything.devices.sim.device_emulator import SimulatedRigConfig
 from touchanything.devices.snapshot import HANDS, VIEW_NAMES
+from touchanything.inference.engine.engine_setting import EngineSetting
 
+MODEL_FILES = ("checkpoint", "config", "onnx_dir")
+"""The [model] settings that name files (paths against the scene's folder); the others are the engine setting's."""
 SECTIONS = ("clock", "cameras", "gloves", "hands", "trackers", "pose", "model", "simulator", "recording")
 
 
@@ -65,7 +69,7 @@ class Scene:
     hands: RokokoConfig | CameraPoseConfig | None = None
     trackers: OpenVRTrackersConfig | None = None
     pose: dict[str, Any] = field(default_factory=dict)
-    model: ModelChoice = field(default_factory=lambda: ModelChoice(default_checkpoint()))
+    model: ModelChoice = field(default_factory=lambda: choose(default_checkpoint()))
     simulator: SimulatedRigConfig | None = None
     recording: RecordingSettings = RecordingSettings()
 
@@ -174,17 +178,17 @@ def _device(section: str, role: str, settings: dict, base: Path, kind_key: str =
 
 
 def _model(settings: dict, base: Path) -> ModelChoice:
-    """[model], its paths against the scene's folder; with `onnx_dir`, that export (`export_choice`)."""
-    settings = dict(settings)
-    for key in ("checkpoint", "config", "onnx_dir"):
-        if key in settings:
-            settings[key] = _resolve("model", key, settings[key], base)
-    choice = _build(ModelChoice, "model", {"checkpoint": default_checkpoint(), **settings})
-    if choice.onnx_dir is None:
-        return choice
-    export = export_choice(choice.onnx_dir, choice.device, settings.get("checkpoint"), choice.config,
-                           settings.get("runtime"), settings.get("precision"))
-    return dataclasses.replace(export, every=choice.every, output=choice.output)
+    """[model]: its files (`MODEL_FILES`, paths against the scene's folder) and the engine setting's knobs
+    (`EngineSetting`'s fields but `model`); with `onnx_dir`, that export (`export_choice`)."""
+    knobs = {k: v for k, v in settings.items() if k not in MODEL_FILES}
+    files = {k: _resolve("model", k, v, base) for k, v in settings.items() if k in MODEL_FILES}
+    names = MODEL_FILES + tuple(f.name for f in dataclasses.fields(EngineSetting) if f.name != "model")
+    if unknown := sorted(set(settings) - set(names)):
+        raise UserError(f"[model] unknown name(s) {', '.join(unknown)}; choose from {', '.join(names)}")
+    check_types(EngineSetting, "model", knobs)
+    if files.get("onnx_dir") is not None:
+        return export_choice(files["onnx_dir"], checkpoint=files.get("checkpoint"), config=files.get("config"), **knobs)
+    return choose(files.get("checkpoint", default_checkpoint()), files.get("config"), **knobs)
 
 
 def _simulator(settings: dict, hands: dict, base: Path) -> SimulatedRigConfig:

@@ -4,12 +4,14 @@ this machine, fits MS (`inference.evaluation.atlas`). Either way the command say
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
 from touchanything.app.sessions.bundled import ATLAS_FILE, SAMPLE_DIR, bundled_models
 from touchanything.app.sessions.engine_choice import ModelChoice
 from touchanything.devices.errors import UserError, require_finite_positive
+from touchanything.inference.engine.engine_setting import NAME_HELP
 from touchanything.inference.evaluation.atlas import (
     PROBE_FRAMES,
     AtlasRow,
@@ -20,7 +22,6 @@ from touchanything.inference.evaluation.atlas import (
     read_atlas,
     rows_for,
 )
-from touchanything.inference.evaluation.bench_setting import NAME_HELP
 
 PROBE_CLIP_FRAMES = 60
 ENGINE_OPTIONS = ("checkpoint", "config", "runtime", "precision", "views", "onnx")
@@ -47,9 +48,8 @@ class PickedSetting:
     line: str
 
     def model_choice(self, device: str) -> ModelChoice:
-        s = self.row.setting
-        return ModelChoice(self.checkpoint, runtime=s.runtime, precision=s.precision, device=device, every=s.rate,
-                           output=s.output)
+        """The row's setting, every knob of it, on `device`, with its checkpoint here."""
+        return ModelChoice(self.checkpoint, dataclasses.replace(self.row.setting, device=device))
 
 
 def display_atlas(atlas: Path) -> tuple[tuple[AtlasRow, ...], str]:

@@ -1,18 +1,19 @@
 """Runtimes for the streaming engine's two halves: torch here (fp32, bf16; fp16/bf16 on GPU) and ONNX
 Runtime (`touchanything.inference.engine.onnx_runtime`: fp32, int8). All satisfy `Runtime`, so selecting a
-runtime never changes the engine; `make_runtime` builds the one an `EngineConfig` selects.
+runtime never changes the engine; `make_runtime` builds the one an `EngineSetting` selects.
 """
 from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 import torch
 
 from touchanything.inference.engine.captured_call import CapturedCalls
-from touchanything.inference.engine.engine_config import EngineConfig, check_runtime
+from touchanything.inference.engine.engine_setting import EngineSetting, compute_threads
 from touchanything.inference.engine.model_halves import model_halves
 from touchanything.inference.engine.onnx_runtime import OnnxRuntime, onnx_folder
 from touchanything.inference.model.models import TactileModel
@@ -55,7 +56,7 @@ class TorchRuntime:
                  capture: bool = True) -> None:
         """`threads` sets torch's intra-op thread count, which is process-wide (None: leave it); `capture`
         False runs a GPU eagerly too."""
-        self.device = check_runtime("torch", precision, device)
+        self.device = EngineSetting(runtime="torch", precision=precision, device=device).resolved_device()
         if threads is not None:
             torch.set_num_threads(threads)
         self.name, self.precision = "torch", precision
@@ -90,10 +91,13 @@ class TorchRuntime:
         return self._head(torch.stack(frame_tokens), *tensors).float().cpu().numpy()
 
 
-def make_runtime(model: TactileModel, config: EngineConfig) -> Runtime:
-    """The runtime `config` selects for `model` (checked first). ONNX without `onnx_dir` uses the graphs
-    cached for this model, exporting them on first use (`onnx_runtime.onnx_folder`)."""
-    config.check()
-    if config.runtime == "torch":
-        return TorchRuntime(model, config.precision, config.device, config.compute_threads(), config.capture)
-    return OnnxRuntime(onnx_folder(model, config.onnx_dir, config.precision), config.precision, config.compute_threads())
+def make_runtime(model: TactileModel, setting: EngineSetting, onnx_dir: Path | None = None,
+                 threads: int | None = None) -> Runtime:
+    """The runtime `setting` selects for `model` (its device checked first) with `threads` CPU threads (None:
+    `compute_threads()`). ONNX runs the graphs of the export folder `onnx_dir`, else those cached for this
+    model, exporting them on first use (`onnx_runtime.onnx_folder`)."""
+    setting.resolved_device()
+    threads = threads or compute_threads()
+    if setting.runtime == "torch":
+        return TorchRuntime(model, setting.precision, setting.device, threads, setting.capture)
+    return OnnxRuntime(onnx_folder(model, onnx_dir, setting.precision), setting.precision, threads)

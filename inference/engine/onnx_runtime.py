@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.devices.errors import UserError
-from touchanything.inference.engine.engine_config import check_runtime
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.onnx_cache import export_aside, onnx_cache_dir
 from touchanything.inference.engine.onnx_export import weights_sha256
 from touchanything.inference.engine.onnx_manifest import REEXPORT, WEIGHTS_KEY, check_weights, export_weights, read_manifest
@@ -24,7 +24,7 @@ class OnnxRuntime:
     def __init__(self, folder: Path, precision: str = "fp32", threads: int | None = None) -> None:
         import onnxruntime as ort
 
-        self.device = check_runtime("onnx", precision, "cpu")
+        self.device = EngineSetting(runtime="onnx", precision=precision, device="cpu").resolved_device()
         self.name, self.precision, self.capture = "onnx", precision, "n/a (ONNX Runtime session)"
         manifest = read_manifest(folder)
         files = manifest["files"][precision]

@@ -21,6 +21,9 @@ class Prediction:
         skipped is absent.
     window_exact: every frame of the 8-frame window was the ideal one (no drops, no start padding).
     held: True when this frame was not computed (prediction every k-th frame) and repeats the last one.
+    spread: an ensemble's (`EngineSetting.members` > 1) per-cell standard deviation of its members' pressures
+        (population, ddof 0), (2, 21, 21) float32 ≥ 0, NaN where `pressure` is NaN; None for a single model
+        and when `pressure` is None.
     """
 
     frame_index: int
@@ -33,3 +36,4 @@ class Prediction:
     status: str = "ok"
     window_exact: bool = True
     held: bool = False
+    spread: np.ndarray | None = None

@@ -3,20 +3,21 @@
 Per frame: the views present (and allowed) are resized, normalised and encoded in one batched backbone
 call, fused and cached with the frame's prepared pose. Then the window head runs for the output frame
 only. For the newest frame the output equals the batch forward of the same 8-frame clip (interval 2).
-See `touchanything.inference.engine.frame_ring` for drops, start and seek, and `EngineConfig` for the knobs.
+See `touchanything.inference.engine.frame_ring` for drops, start and seek, and `EngineSetting` for the knobs.
 """
 from __future__ import annotations
 
 import dataclasses
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.inference.engine.engine_config import EngineConfig
 from touchanything.inference.engine.engine_runtime import Runtime, make_runtime
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.frame_ring import CachedFrame, FrameRing, Window
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.engine.stitching import StitchAccumulator
@@ -40,12 +41,15 @@ class StreamingEngine:
     last 6 frames with newest-frame output; stitched: the partial averages of the last 14); `reset()` (or
     a frame index that does not increase) clears the cache."""
 
-    def __init__(self, model: TactileModel, config: EngineConfig = EngineConfig(), layout: TactileLayout | None = None,
-                 clock: Callable[[], float] = time.monotonic) -> None:
-        self.config = config.check()
+    def __init__(self, model: TactileModel, setting: EngineSetting = EngineSetting(), layout: TactileLayout | None = None,
+                 clock: Callable[[], float] = time.monotonic, onnx_dir: Path | None = None,
+                 threads: int | None = None) -> None:
+        """`onnx_dir`: an ONNX setting's export folder (`touchanything export-onnx`; None: the user cache's
+        export of `model`, made on first use); `threads`: CPU threads for the model (None: all cores but one)."""
+        self.setting = setting
         self.image_size = model.config.image_size
-        self.blank = model.config.blank_images  # a pose-only model sees black frames
-        self.runtime: Runtime = make_runtime(model, config)
+        self.blank = model.config.blank_images or setting.blank  # a pose-only model or setting sees black frames
+        self.runtime: Runtime = make_runtime(model, setting, onnx_dir, threads)
         self.mask = (layout or TactileLayout.default()).nan_mask()
         self.clock = clock
         self.ring = FrameRing()
@@ -61,24 +65,24 @@ class StreamingEngine:
 
     def set_views(self, views: tuple[str, ...]) -> None:
         """Change the views the engine may use, mid-stream (cached frames keep the views they had)."""
-        self.config = dataclasses.replace(self.config, views=tuple(views)).check()
+        self.setting = dataclasses.replace(self.setting, views=tuple(views))
 
     def step(self, snapshot: Snapshot) -> list[Prediction]:
         start = time.perf_counter()
         if self.ring.is_seek(snapshot.frame_index):
             self.reset()
-        views = tuple(v for v in VIEW_NAMES if v in self.config.views and v in snapshot.images)
+        views = tuple(v for v in VIEW_NAMES if v in self.setting.views and v in snapshot.images)
         if "ego" not in views:
             self.ring.note_index(snapshot.frame_index)
             return [self._without_prediction(snapshot, views, "no ego view: no prediction")]
         self._count += 1
-        if (self._count - 1) % self.config.every and self._last is not None:
+        if (self._count - 1) % self.setting.every and self._last is not None:
             self.ring.note_index(snapshot.frame_index)
             return [self._held(snapshot)]
         timings = {}
         self.ring.add(self._encode(snapshot, views, timings))
         window = self.ring.window()
-        outputs = {"newest": self._newest, "centre": self._centre, "stitched": self._stitched}[self.config.output]
+        outputs = {"newest": self._newest, "centre": self._centre, "stitched": self._stitched}[self.setting.output]
         predictions = outputs(window, timings)
         timings["total"] = _ms(start)
         return predictions
@@ -86,9 +90,9 @@ class StreamingEngine:
     def drain(self) -> list[Prediction]:
         """End of stream: the frames a look-ahead output still holds."""
         window = self.ring.window()
-        if window is None or self.config.output == "newest":
+        if window is None or self.setting.output == "newest":
             return []
-        if self.config.output == "stitched":
+        if self.setting.output == "stitched":
             return [self._stitched_prediction(entry, {}) for entry in self.stitch.complete()]
         remaining = [i for i in self.ring.cached_indices() if i > self._emitted]
         return [p for i in remaining for p in self._newest(self.ring.window(end=i), {})]
@@ -107,7 +111,7 @@ class StreamingEngine:
         return CachedFrame(snapshot.frame_index, tokens, prepare_poses(joints, valid), valid, views, snapshot.t_us)
 
     def _hand_sets(self, frames: list[CachedFrame]) -> list[tuple[int, ...]]:
-        if self.config.invalid_hands == "official":
+        if self.setting.invalid_hands == "official":
             return [(0, 1)] * len(frames)
         return [tuple(h for h in (0, 1) if f.valid[h]) for f in frames]
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from touchanything.devices.errors import UserError, require_finite_positive
 from touchanything.devices.snapshot import Snapshot
-from touchanything.inference.evaluation.bench_setting import BenchSetting, parse_setting
+from touchanything.inference.engine.engine_setting import EngineSetting, parse_setting
 
 if TYPE_CHECKING:
     from touchanything.inference.model.models import TactileModel
@@ -39,7 +39,7 @@ class AtlasRow:
     """One setting of the atlas: accuracy (mean over `trajectories` held-out trajectories, 95 % intervals) and
     the p99 latency measured where the atlas was made."""
 
-    setting: BenchSetting
+    setting: EngineSetting
     checkpoint_sha256: str
     trajectories: int
     volumetric_iou: float
@@ -122,12 +122,12 @@ def find_row(rows: list[AtlasRow], name: str, atlas: Path) -> AtlasRow:
     raise UserError(f"setting {name} is not in the atlas {atlas} (its most accurate: {known}, …)")
 
 
-def probe_p99(model: TactileModel, setting: BenchSetting, clip: list[Snapshot], frames: int, device: str) -> float:
+def probe_p99(model: TactileModel, setting: EngineSetting, clip: list[Snapshot], frames: int, device: str) -> float:
     """p99 per-frame step time (ms) of `setting` on this machine over `frames` frames of `clip` (after
     PROBE_WARMUP untimed ones); ONNX graphs come from the user cache (exported on first use)."""
     from touchanything.inference.engine.streaming_engine import StreamingEngine  # imported where used: --help loads this module
 
-    engine = StreamingEngine(model, dataclasses.replace(setting.engine_config(None), device=device).check())
+    engine = StreamingEngine(model, dataclasses.replace(setting, device=device))
     times = []
     for i in range(PROBE_WARMUP + frames):
         snapshot = dataclasses.replace(clip[i % len(clip)], frame_index=i, t_us=int(time.monotonic() * 1e6))

@@ -25,11 +25,12 @@ import torch
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.devices.view_sets import view_set_name
 from touchanything.inference.engine.engine_runtime import Runtime
+from touchanything.inference.engine.engine_setting import EngineSetting, compute_threads
 from touchanything.inference.engine.onnx_export import export_onnx
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_accuracy import HeldOut, ModelAccuracy, SettingAccuracy, model_accuracy
 from touchanything.inference.evaluation.bench_data import resident_mb
-from touchanything.inference.evaluation.bench_setting import BenchSetting, settings_for
+from touchanything.inference.evaluation.bench_setting import settings_for
 from touchanything.inference.evaluation.metrics import aggregate
 from touchanything.inference.evaluation.vision_share import vision_shares
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
@@ -42,8 +43,8 @@ PER_TRAJECTORY_METRICS = ("volumetric_iou", "contact_iou", "temporal_accuracy", 
 """The per-trajectory values each row keeps (for intervals and paired comparisons, also across runs)."""
 
 
-def interleaved_latency(engines: dict[BenchSetting, StreamingEngine], clip: list[Snapshot], rounds: int,
-                        per_round: int, progress=lambda message: None) -> dict[BenchSetting, tuple[np.ndarray, float]]:
+def interleaved_latency(engines: dict[EngineSetting, StreamingEngine], clip: list[Snapshot], rounds: int,
+                        per_round: int, progress=lambda message: None) -> dict[EngineSetting, tuple[np.ndarray, float]]:
     """Per-frame step times (ms) and peak resident MB per setting; round 0 warms up and is discarded; `progress`
     after each round."""
     times = {s: [] for s in engines}
@@ -108,21 +109,21 @@ def accuracy_fields(result: SettingAccuracy) -> dict:
             "per_trajectory": {m: [t[m] for t in result.per_trajectory] for m in PER_TRAJECTORY_METRICS}}
 
 
-def setting_row(setting: BenchSetting, runtime: Runtime, checkpoint_sha256: str | None = None) -> dict:
+def setting_row(setting: EngineSetting, runtime: Runtime, checkpoint_sha256: str | None = None) -> dict:
     """A row's description of its setting, latency and accuracy not measured (None); `runtime` (the engine's,
     after the run) names device and capture; `checkpoint_sha256` the weights it ran (None: not from a file)."""
     gpu = torch.cuda.get_device_name(runtime.device) if runtime.device.type == "cuda" else None
     return {"setting": setting.name(), "model": setting.model, "checkpoint_sha256": checkpoint_sha256,
             "runtime": setting.runtime, "precision": setting.precision,
             "device": device_label(runtime.device), "gpu_name": gpu, "capture": runtime.capture,
-            "views": view_set_name(setting.views), "rate": setting.rate, "output": setting.output,
+            "views": view_set_name(setting.views), "every": setting.every, "output": setting.output,
             "invalid_hands": setting.invalid_hands, "blank": setting.blank,
-            "threads": setting.engine_config(None).compute_threads(), "lookahead_ms": setting.lookahead_ms,
+            "threads": compute_threads(), "lookahead_ms": setting.lookahead_ms,
             "p50_ms": None, "p99_ms": None, "mean_ms": None, "latency_frames": 0, "trajectories": 0,
             "contact_iou": None, "volumetric_iou": None, "agreement_viou": None, "peak_rss_mb": 0.0}
 
 
-def latency_row(setting: BenchSetting, times: np.ndarray, peak_mb: float, runtime: Runtime,
+def latency_row(setting: EngineSetting, times: np.ndarray, peak_mb: float, runtime: Runtime,
                 checkpoint_sha256: str | None = None) -> dict:
     """The row of one setting's latency (`setting_row` with the step times in ms)."""
     return {**setting_row(setting, runtime, checkpoint_sha256), "p50_ms": float(np.percentile(times, 50)),
@@ -147,13 +148,13 @@ def bench_model(name: str, model: TactileModel, held_out: HeldOut | None, clip: 
     """Every setting of one model: accuracy on `held_out` (None: latency only, torch fp32 all views), then
     interleaved latency, then the naive comparison. `checkpoint` (the file the model came from) is what worker
     processes load; `checkpoint_sha256` is recorded in every row."""
-    settings = settings_for(name, plan.quick, plan.pose_only) if held_out is not None else [BenchSetting(name)]
+    settings = settings_for(name, plan.quick, plan.pose_only) if held_out is not None else [EngineSetting(name, device="cpu")]
     with tempfile.TemporaryDirectory(prefix="touchanything-bench-") as folder:
         onnx_dir = Path(folder)
         if any(s.runtime == "onnx" for s in settings):
             progress(f"{name}: exporting ONNX graphs")
             export_onnx(model, onnx_dir, int8=True)
-        engines = {s: StreamingEngine(model, s.engine_config(onnx_dir if s.runtime == "onnx" else None))
+        engines = {s: StreamingEngine(model, s, onnx_dir=onnx_dir if s.runtime == "onnx" else None)
                    for s in settings if not s.blank}
         accuracy = (model_accuracy(model, checkpoint, settings, engines, onnx_dir, held_out, progress)
                     if held_out is not None else ModelAccuracy([], [], {}, []))

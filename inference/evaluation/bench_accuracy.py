@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_data import BenchEpisode, load_episodes, resident_mb
-from touchanything.inference.evaluation.bench_setting import BenchSetting
 from touchanything.inference.evaluation.evaluation import trajectory_metrics
 from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.preprocess import blank_images
@@ -72,7 +72,7 @@ class ModelAccuracy:
 
     names: list[str]
     splits: list[str]
-    settings: dict[BenchSetting, SettingAccuracy]
+    settings: dict[EngineSetting, SettingAccuracy]
     failures: list[str]
 
 
@@ -102,12 +102,12 @@ def agreement_sums(out: np.ndarray, ref: np.ndarray) -> tuple[float, float, floa
             float(np.abs(out[both] - ref[both]).max(initial=0.0)))
 
 
-def settings_accuracy(settings: list[BenchSetting], engines: dict[BenchSetting, StreamingEngine],
-                      episodes: list[BenchEpisode], progress=print) -> dict[BenchSetting, SettingAccuracy]:
+def settings_accuracy(settings: list[EngineSetting], engines: dict[EngineSetting, StreamingEngine],
+                      episodes: list[BenchEpisode], progress=print) -> dict[EngineSetting, SettingAccuracy]:
     """Every setting in order over `episodes`, agreement against the first setting's outputs (a pose-only setting,
     `blank`, runs through its real twin's engine)."""
     bend = TactileLayout.default().bend
-    results: dict[BenchSetting, SettingAccuracy] = {}
+    results: dict[EngineSetting, SettingAccuracy] = {}
     reference: list[np.ndarray] | None = None
     for setting in settings:
         progress(f"{setting.name()}: accuracy on {len(episodes)} trajectories")
@@ -127,8 +127,8 @@ def settings_accuracy(settings: list[BenchSetting], engines: dict[BenchSetting, 
     return results
 
 
-def model_accuracy(model: TactileModel, checkpoint: Path | None, settings: list[BenchSetting],
-                   engines: dict[BenchSetting, StreamingEngine], onnx_dir: Path | None, held_out: HeldOut,
+def model_accuracy(model: TactileModel, checkpoint: Path | None, settings: list[EngineSetting],
+                   engines: dict[EngineSetting, StreamingEngine], onnx_dir: Path | None, held_out: HeldOut,
                    progress=print) -> ModelAccuracy:
     """`settings_accuracy` over the held-out trajectories, in this process (`engines`) or, with `workers` > 1, in
     worker processes that load `checkpoint` and build their own engines (the ONNX graphs from `onnx_dir`)."""
@@ -151,7 +151,7 @@ def model_accuracy(model: TactileModel, checkpoint: Path | None, settings: list[
     return _merged(parts, shares, settings)
 
 
-WorkerPart = tuple[list[int], list[str], list[str], dict[BenchSetting, SettingAccuracy], list[str]]
+WorkerPart = tuple[list[int], list[str], list[str], dict[EngineSetting, SettingAccuracy], list[str]]
 """(positions of the loaded trajectories in the worker's share, their names, their splits, results, failures)"""
 
 
@@ -161,8 +161,7 @@ def _worker(job) -> WorkerPart:
 
     checkpoint, settings, pairs, size, frames, onnx_dir, threads, tag = job
     model = load_model(checkpoint)
-    engines = {s: StreamingEngine(model, dataclasses.replace(s.engine_config(onnx_dir if s.runtime == "onnx" else None),
-                                                             threads=threads))
+    engines = {s: StreamingEngine(model, s, onnx_dir=onnx_dir if s.runtime == "onnx" else None, threads=threads)
                for s in settings if not s.blank}
     def progress(message: str) -> None:
         print(f"  [{tag}] {message}", file=sys.stderr, flush=True)
@@ -175,7 +174,7 @@ def _worker(job) -> WorkerPart:
             settings_accuracy(settings, engines, episodes, progress), failures)
 
 
-def _merged(parts: list[WorkerPart], shares: list[list[int]], settings: list[BenchSetting]) -> ModelAccuracy:
+def _merged(parts: list[WorkerPart], shares: list[list[int]], settings: list[EngineSetting]) -> ModelAccuracy:
     """The workers' parts back in the order of the held-out trajectories (`shares[w]`: worker w's indices)."""
     order = sorted((shares[w][position], w, k) for w, part in enumerate(parts) for k, position in enumerate(part[0]))
     results = {}

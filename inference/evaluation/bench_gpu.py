@@ -13,8 +13,9 @@ import numpy as np
 import torch
 
 from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.streaming_engine import StreamingEngine
-from touchanything.inference.evaluation.bench import BenchSetting, interleaved_latency, latency_row
+from touchanything.inference.evaluation.bench import interleaved_latency, latency_row
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN, preset
 from touchanything.inference.model.pose_encoder import prepare_poses
 from touchanything.inference.model.preprocess import model_input, model_input_on_device
@@ -25,11 +26,11 @@ GPU_PRESETS = ("paper", "small")
 VIEW_SETTINGS = (VIEW_NAMES, ("ego",))
 
 
-def gpu_settings(name: str, device: torch.device) -> list[BenchSetting]:
+def gpu_settings(name: str, device: torch.device) -> list[EngineSetting]:
     """Precisions the device offers (tf32 and fp16 on a GPU) × three views / ego only × captured / eager, torch
     newest-frame output."""
     precisions = ("fp32", "tf32", "bf16", "fp16") if device.type == "cuda" else ("fp32", "bf16")
-    return [BenchSetting(name, precision=p, views=v, device=str(device), capture=c)
+    return [EngineSetting(name, precision=p, views=v, device=str(device), capture=c)
             for p in precisions for v in VIEW_SETTINGS for c in (True, False)]
 
 
@@ -64,7 +65,7 @@ def bench_presets_on(device: torch.device, clip: list[Snapshot], rounds: int, pe
         torch.manual_seed(0)
         model = TouchAnything(preset(name)).eval().to(device)
         settings = gpu_settings(name, device)
-        engines = {s: StreamingEngine(model, s.engine_config(None)) for s in settings}
+        engines = {s: StreamingEngine(model, s) for s in settings}
         progress(f"{name} on {device_label(device)}: {len(settings)} settings, {rounds} rounds × {per_round} frames")
         if device.type == "cuda":
             torch.cuda.reset_peak_memory_stats(device)

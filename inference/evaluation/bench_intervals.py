@@ -2,7 +2,7 @@
 (over all held-out trajectories and per split), and paired differences between settings measured on the same
 trajectories (`bootstrap`): each setting against its model's reference (int8 against fp32, a view subset
 against all views, a rate or output position against every frame's newest), and each model's reference
-against the base model's (`nano`: what a model adds or loses against the default one).
+against the base model's (the default model: what a model adds or loses against it).
 
 Rows carry their per-trajectory values (`bench.PER_TRAJECTORY_METRICS`) aligned with the run's trajectory list
 (`align_rows`); a trajectory a model could not replay is NaN in its rows, which the official mean leaves out.
@@ -13,7 +13,8 @@ import math
 
 import numpy as np
 
-from touchanything.inference.evaluation.bench_setting import BenchSetting, parse_setting, reference_of
+from touchanything.inference.engine.engine_setting import EngineSetting, parse_setting
+from touchanything.inference.evaluation.bench_setting import reference_of
 from touchanything.inference.evaluation.bootstrap import Resampler
 
 INTERVAL_METRICS = ("volumetric_iou", "contact_iou")
@@ -62,7 +63,7 @@ def paired_comparisons(rows: list[dict], trajectories: list[dict], base_models: 
     reference against each of `base_models`' (the default model, the pose-only baseline)."""
     resampler = Resampler([t["split"] for t in trajectories])
     measured = {row["setting"]: row for row in rows if row.get("per_trajectory") is not None}
-    bases = [BenchSetting(model).name() for model in base_models]
+    bases = [EngineSetting(model).name() for model in base_models]
     pairs = []
     for name in measured:
         setting = parse_setting(name)

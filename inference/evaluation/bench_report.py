@@ -42,7 +42,7 @@ def target_checks(rows: list[dict], naive: dict, smallest: str, base: str = "nan
                      naive.get("paper", {}).get("ratio"), NAIVE_RATIO_TARGET, at_most=False)]
     for row in rows:
         reference = _reference(rows, row["model"])
-        same_knobs = reference and all(row[k] == reference[k] for k in ("views", "rate", "output", "invalid_hands"))
+        same_knobs = reference and all(row[k] == reference[k] for k in ("views", "every", "output", "invalid_hands"))
         if row["precision"] in ("int8", "bf16") and same_knobs and row["volumetric_iou"] is not None:
             checks.append(_check(f"{row['setting']}: volumetric IoU lost against fp32",
                                  reference["volumetric_iou"] - row["volumetric_iou"], PRECISION_LOSS_TARGET, at_most=True))
