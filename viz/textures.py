@@ -23,3 +23,11 @@ class TextureSlot:
             cv2.resize(image, (self.width, self.height), dst=self._staging, interpolation=cv2.INTER_AREA)
         np.multiply(self._staging.reshape(-1), np.float32(1 / 255), out=self._buffer, casting="unsafe")
         dpg.set_value(self.tag, self._buffer)
+
+    @property
+    def uploaded(self) -> np.ndarray:
+        """(height, width, 3) uint8: the texture's content as last uploaded (a read-only copy; dearpygui gives no
+        raw texture's value back)."""
+        image = (self._buffer.reshape(self.height, self.width, 3) * 255).round().astype(np.uint8)
+        image.flags.writeable = False
+        return image

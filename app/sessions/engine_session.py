@@ -221,7 +221,8 @@ class EngineSession:
                 playback=playback, model=self._model_line(snapshot), message=self.message,
                 recording=self.recording_status(), setting=self._setting_name(),
                 step_p99_ms=float(np.percentile(self._steps, 99)) if len(self._steps) >= MIN_STEPS else None,
-                atlas=self.atlas, atlas_note=self.atlas_note)
+                atlas=self.atlas, atlas_note=self.atlas_note,
+                members=self.choice.setting.members if self.live is not None else 1)
 
     def _setting_name(self) -> str:
         """The running setting's name with the views switched on ("" without a model or without the head camera:

@@ -1,5 +1,5 @@
-"""The dearpygui dashboard: cameras with hand overlays, measured / predicted / error pressure maps,
-contact lamps, running metrics, latency per stage, device status, and the session's controls.
+"""The dearpygui dashboard: cameras with hand overlays, measured / predicted (or an ensemble's spread) / error
+pressure maps, contact lamps, running metrics, latency per stage, device status, and the session's controls.
 
 The render loop runs on the calling thread and never waits for devices or the engine: it polls the
 session's latest state at the display rate and rebuilds an image only when its content changed (cameras
@@ -61,6 +61,11 @@ FONT_SIZE = 13
 CHAR_WIDTH = 0.517 * FONT_SIZE
 """The font is monospaced; dearpygui scales it so that ascent − descent is FONT_SIZE pixels, and DejaVu Sans
 Mono advances 0.517 of that per character."""
+SPREAD_TIPS = {True: "show the members' spread (how much the ensemble's models disagree) instead of the predicted pressure",
+               False: "one model: no spread"}
+"""The spread toggle's tooltip, by whether an ensemble runs."""
+DISABLED_TEXT = (128, 128, 128)
+"""A disabled control's label colour (dearpygui draws it as an enabled one's otherwise)."""
 HAND_LABEL_SPACING = 21 * CELL + MAP_GAP - round(len(HAND_LABELS[0]) * CHAR_WIDTH)
 """Puts the right hand's label under the right map."""
 
@@ -98,6 +103,8 @@ class Dashboard:
         self.config = config
         self.stats = DashboardStats()
         self.outline = False
+        self.spread = False
+        """The predicted map shows the members' spread (while an ensemble runs)."""
         self.pending_screenshot: Path | None = None
         self.saved_screenshots: list[Path] = []
         self.note = ""
@@ -168,6 +175,8 @@ class Dashboard:
                                     with dpg.group(horizontal=True, horizontal_spacing=HAND_LABEL_SPACING):
                                         for label in HAND_LABELS:
                                             dpg.add_text(label)
+                                        if name == "predicted":
+                                            self._build_spread_toggle()
                     self.atlas = AtlasPanel(*ATLAS)
                 with dpg.group():
                     build_controls(self)
@@ -177,6 +186,30 @@ class Dashboard:
             for add_handler in (dpg.add_mouse_move_handler, dpg.add_mouse_down_handler, dpg.add_mouse_wheel_handler,
                                 dpg.add_key_down_handler):
                 add_handler(callback=_noted)
+
+    def _build_spread_toggle(self) -> None:
+        """The "spread" checkbox under the predicted map's colour bar: the members' spread instead of the predicted
+        pressure; disabled until an ensemble runs, its tooltip saying why (`_show_spread_toggle`)."""
+        dpg.add_checkbox(label="spread", tag="spread_toggle", enabled=False,
+                         callback=lambda s, value: setattr(self, "spread", bool(value)))
+        with dpg.tooltip("spread_toggle"):
+            dpg.add_text(SPREAD_TIPS[False], tag="spread_tip")
+        with dpg.theme() as theme:
+            for enabled in (True, False):
+                with dpg.theme_component(dpg.mvCheckbox, enabled_state=enabled):
+                    dpg.add_theme_style(dpg.mvStyleVar_FramePadding, 4, 0)  # as high as the hand labels beside it
+                    if not enabled:
+                        dpg.add_theme_color(dpg.mvThemeCol_Text, DISABLED_TEXT)
+        dpg.bind_item_theme("spread_toggle", theme)
+
+    def _show_spread_toggle(self, members: int) -> bool:
+        """Enable the spread toggle while an ensemble (`members` > 1) runs; True when that changed."""
+        ensemble = members > 1
+        if not self._changed("ensemble", ensemble):
+            return False
+        dpg.configure_item("spread_toggle", enabled=ensemble)
+        dpg.set_value("spread_tip", SPREAD_TIPS[ensemble])
+        return True
 
     def _loop(self, max_frames: int | None, screenshot: Path | None) -> None:
         start = last_frame = time.perf_counter()
@@ -253,10 +286,12 @@ class Dashboard:
                                                      pressure))
             if new_snapshot and state.snapshot is not None:
                 self.stats.camera_lag_ms.append((now_us - state.snapshot.t_us) / 1e3)
-        settings = (self.session.threshold, self.outline, state.truth is None)
+        new_toggle = self._show_spread_toggle(state.members)
+        settings = (self.session.threshold, self.outline, state.truth is None, self.spread, state.members > 1)
         new_maps = new_prediction | self._changed("facts", facts) | self._changed("settings", settings)
         if new_maps:  # everything the prediction's facts decide, together: the panels never disagree
-            for name, (image, title) in pressure_views(state, CELL, self.session.threshold, self.outline).items():
+            views = pressure_views(state, CELL, self.session.threshold, self.outline, self.spread)
+            for name, (image, title) in views.items():
                 self.maps[name].show(blank(*MAPS, "n/a") if image is None else image)
                 dpg.set_value(f"title_{name}", title)
             self.lamps.update(facts)
@@ -264,7 +299,7 @@ class Dashboard:
             self._tables.show_metrics(facts)
         if new_prediction and prediction is not None:
             self.stats.prediction_lag_ms.append((now_us - prediction.t_us) / 1e3)
-        changed = new_snapshot | new_maps
+        changed = new_snapshot | new_maps | new_toggle
         if self._refresh_due("plots") and self._changed("history", tuple(v.tobytes() for v in state.history.values())):
             self.plots.update(state.history)
             changed = True

@@ -55,7 +55,8 @@ class SessionState:
     playback: None in live mode; model: the running model and tier; message: the latest notice; setting: the
     running engine setting's name (`nano/onnx-int8/all`); step_p99_ms: p99 of the engine's per-frame step time
     over its recent predictions (None before enough of them); atlas: the speed/accuracy atlas's settings of the
-    models here (empty, with `atlas_note` saying why, when there is none)."""
+    models here (empty, with `atlas_note` saying why, when there is none); members: the running engine's
+    ensemble members (1 for a single model and without a model: its predictions have no spread)."""
 
     snapshot: Snapshot | None = None
     prediction: Prediction | None = None
@@ -75,6 +76,7 @@ class SessionState:
     step_p99_ms: float | None = None
     atlas: tuple[AtlasRow, ...] = ()
     atlas_note: str = ""
+    members: int = 1
 
     @property
     def rolling(self) -> dict[str, float] | None:
