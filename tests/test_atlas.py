@@ -204,3 +204,39 @@ def test_every_knob_of_a_setting_reaches_the_engine(atlas):
     Args.views = None
     assert given_choice(Args).setting.views == VIEW_NAMES
     assert request.inputs == (bundled_models()["nano"],)
+
+
+def test_a_faster_setting_the_atlas_cannot_tell_apart_is_preferred(shas):
+    """At 33 ms the picker took pico/torch-fp32/all (p99 31.7 ms) over pico/onnx-int8/all, 3× faster, paired
+    −0.001 [−0.001, +0.000]: a faster setting whose paired V-IoU difference holds 0 is preferred; one that is
+    worse on every trajectory is not."""
+    from touchanything.inference.evaluation.atlas import AtlasRow, choice_line
+
+    strata = ("test_seen",) * 30 + ("test_unseen",) * 20
+    base = np.linspace(0.3, 0.8, 50)
+
+    def row(name: str, viou: np.ndarray, p99: float) -> AtlasRow:
+        return AtlasRow(parse_setting(name), shas["nano"], 50, float(viou.mean()), (0.0, 1.0), 0.7, (0.6, 0.8), p99,
+                        tuple(viou), strata)
+
+    wiggle = np.where(np.arange(50) % 2, 0.009, -0.011)  # mean −0.001, ±0.01 per trajectory: no measured difference
+    fp32 = row("nano/torch-fp32/all", base, 30.0)
+    int8 = row("nano/onnx-int8/all", base + wiggle, 10.0)
+    worse = row("nano/onnx-int8/ego", base - 0.05, 3.0)  # 0.05 below on every trajectory: told apart
+    measured = []
+
+    def measure(r):
+        measured.append(r.name)
+        return r.atlas_p99_ms
+
+    rows = sorted([fp32, int8, worse], key=lambda r: -r.volumetric_iou)
+    choice = choose_within_budget(rows, 33.0, measure, progress=lambda line: None)
+    assert choice.row is int8 and measured == [rows[0].name, "nano/onnx-int8/all"]
+    assert choice.tied_with[0] == rows[0].name and choice.tied_with[1][1] <= 0.0 <= choice.tied_with[1][2]
+    assert f"as accurate as {rows[0].name} (paired ΔV-IoU" in choice_line(choice, 33.0)
+    assert "more accurate setting(s) took longer" not in choice_line(choice, 33.0)
+    alone = [fp32, worse]
+    measured.clear()
+    assert choose_within_budget(alone, 33.0, measure, progress=lambda line: None).row is fp32 and measured == [fp32.name]
+    no_values = [dataclasses.replace(r, per_trajectory_viou=(), strata=()) for r in rows]  # an atlas without them
+    assert choose_within_budget(no_values, 33.0, measure, progress=lambda line: None).row.name == rows[0].name

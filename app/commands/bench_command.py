@@ -26,7 +26,7 @@ from touchanything.inference.evaluation.bench_report import (
     target_checks,
     write_outputs,
 )
-from touchanything.inference.evaluation.bootstrap import FEW_TRAJECTORIES
+from touchanything.inference.evaluation.bootstrap import FEW_TRAJECTORIES, thin_strata
 from touchanything.inference.model.torch_device import device_label, resolve_device
 
 if TYPE_CHECKING:
@@ -159,6 +159,8 @@ def atlas(args: argparse.Namespace, models: dict[str, tuple[TactileModel, Path]]
     if len(held_out.pairs) < FEW_TRAJECTORIES:  # said once the data read (an error stays one line)
         print(f"warning: only {len(held_out.pairs)} held-out trajectories: the 95 % intervals are wide (use a dataset "
               f"root with at least {FEW_TRAJECTORIES}, e.g. data/heldout from scripts/make_datasets.sh)", file=sys.stderr)
+    elif thin := thin_strata([split for _, split in held_out.pairs]):
+        print(f"warning: {thin}", file=sys.stderr)
     started = time.perf_counter()
 
     def progress(message: str) -> None:

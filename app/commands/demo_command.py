@@ -76,9 +76,10 @@ def run(args: argparse.Namespace) -> int:
     picked = picked_setting(request, args.device)
     choice = picked.model_choice(args.device) if picked else given
     if args.headless or problem:
-        replay_to_video(paths, choice, args.out, args.hand3d, rerun)
+        replay_to_video(paths, choice, args.out, args.hand3d, rerun, picked and picked.budget_watch())
         print(f"watch it with any video player: {args.out}")
     else:
-        stats = replay_in_dashboard(paths[0], choice, rerun=rerun, loop=True, atlas=args.atlas, tour=paths[1:]).stats
+        stats = replay_in_dashboard(paths[0], choice, rerun=rerun, loop=True, atlas=args.atlas, tour=paths[1:],
+                                    budget=picked and picked.budget_watch()).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

@@ -64,6 +64,7 @@ def open_live_session(scene_path: Path, device: str | None = None, picked: Picke
         print(message)
     session = LiveSession(LiveRig(scene), engine, choice, message)
     session.set_views(choice.setting.views)
+    session.budget = picked and picked.budget_watch()
     return session
 
 
@@ -73,10 +74,13 @@ def run_headless(session, seconds: float) -> dict:
     from touchanything.viz.frame_facts import metric_text
     from touchanything.viz.hand_projection import pose_label
 
-    deadline = time.monotonic() + seconds
+    deadline, over = time.monotonic() + seconds, ""
     while time.monotonic() < deadline:
         time.sleep(min(1.0, max(deadline - time.monotonic(), 0)))
         state = session.state()
+        if session.budget is not None and session.budget.said != over:
+            over = session.budget.said
+            print(over, flush=True)
         prediction = state.prediction
         latency = "-" if prediction is None else f"{prediction.latency_ms:.0f} ms"
         print(f"{time.strftime('%H:%M:%S')}  rig {session.frames.rate():4.1f} Hz  engine {state.engine_fps:4.1f} fps  "
@@ -92,6 +96,8 @@ def run_headless(session, seconds: float) -> dict:
     print(f"model     {state.model}{engine}")
     print(f"summary   {summary['snapshots']} snapshots, {summary['predictions']} predictions, {summary['dropped']} "
           f"dropped by the engine; latency p50 {summary['latency_p50_ms'] or float('nan'):.0f} ms")
+    if session.budget is not None and (line := session.budget.after(state.step_p99_ms)):
+        print(line)
     if state.cumulative is not None:
         print("metrics   " + ", ".join(f"{k} {metric_text(v)}" for k, v in state.cumulative.items() if k in SHOWN_METRICS)
               + " (against the gloves' live pressure)")

@@ -91,10 +91,11 @@ def run(args: argparse.Namespace) -> int:
     choice = picked.model_choice(args.device) if picked else given
     if not headless and rerun is not None and (problem := display_problem()):
         print(f"no dashboard: {problem}. Writing the Rerun recording only (--headless: the comparison video too).")
-        replay_to_video([args.episode], choice, None, rerun=rerun)
+        replay_to_video([args.episode], choice, None, rerun=rerun, budget=picked and picked.budget_watch())
     elif headless:
-        replay_to_video([args.episode], choice, out, args.hand3d, rerun)
+        replay_to_video([args.episode], choice, out, args.hand3d, rerun, picked and picked.budget_watch())
     else:
-        stats = replay_in_dashboard(args.episode, choice, rerun=rerun, atlas=args.atlas).stats
+        stats = replay_in_dashboard(args.episode, choice, rerun=rerun, atlas=args.atlas,
+                                    budget=picked and picked.budget_watch()).stats
         print(f"dashboard closed after {stats.frames} frames ({stats.fps:.0f} fps)")
     return 0

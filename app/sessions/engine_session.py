@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.app.sessions.budget_watch import BudgetWatch
 from touchanything.app.sessions.bundled import ATLAS_FILE, bundled_models
 from touchanything.app.sessions.engine_choice import (
     CPU_TIERS,
@@ -82,6 +83,8 @@ class EngineSession:
         self.atlas, self.atlas_note = display_atlas(ATLAS_FILE)
         self.frames, self._predictions = RateMeter(), RateMeter()
         self.message = message
+        self.budget: BudgetWatch | None = None
+        """The budget the running setting was chosen for (`--setting auto`); an overrun becomes the message, once."""
         self._loading = False
         self._model = model_label(choice, engine) if engine is not None else "no model"
         self._camera_note = illustrative_note(choice, camera_pose=True)
@@ -220,9 +223,16 @@ class EngineSession:
                 stage_ms=self._stages.means(), engine_fps=0.0 if paused else self._predictions.rate(), sources=tuple(rows),
                 playback=playback, model=self._model_line(snapshot), message=self.message,
                 recording=self.recording_status(), setting=self._setting_name(),
-                step_p99_ms=float(np.percentile(self._steps, 99)) if len(self._steps) >= MIN_STEPS else None,
+                step_p99_ms=self._step_p99(),
                 atlas=self.atlas, atlas_note=self.atlas_note,
                 members=self.choice.setting.members if self.live is not None else 1)
+
+    def _step_p99(self) -> float | None:
+        """p99 of the engine's recent step times (None: too few yet); an overrun of the budget is said once."""
+        p99 = float(np.percentile(self._steps, 99)) if len(self._steps) >= MIN_STEPS else None
+        if self.budget is not None and (line := self.budget.over(p99)):
+            self.message = line
+        return p99
 
     def _setting_name(self) -> str:
         """The running setting's name with the views switched on ("" without a model or without the head camera:

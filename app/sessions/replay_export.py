@@ -121,12 +121,13 @@ def tour_lines(summaries: list[ReplaySummary]) -> list[str]:
 
 
 def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: ReplaySummary,
-                  progress: Callable[[int], None] = lambda frame: None, renderer: ReplayFrameRenderer | None = None,
+                  progress: Callable[[ReplaySummary], None] = lambda summary: None,
+                  renderer: ReplayFrameRenderer | None = None,
                   rerun: RerunRecording | None = None) -> Iterator[np.ndarray | None]:
     """Yield, for every frame of the source's episode (a ReplaySource with speed None: every frame is
     processed), its comparison frame drawn by `renderer` (None: nothing is drawn, None is yielded) and log
-    it to `rerun` when given, in both the views the engine does not use (`views_used`) marked "not used"; the
-    source is closed at the end."""
+    it to `rerun` when given, in both the views the engine does not use (`views_used`) marked "not used";
+    `progress` gets the episode's summary so far after each frame; the source is closed at the end."""
     episode = source.episode
     gt = None
     if episode.pressure is not None:
@@ -160,7 +161,7 @@ def replay_frames(source: ReplaySource, engine: StreamingEngine, summary: Replay
             summary.frames += 1
             if rerun is not None:
                 _log_frame(rerun, episode, snapshot, truth, this if shown is not None else None, facts, used)
-            progress(snapshot.frame_index)
+            progress(summary)
             spread = None if this is None else this.spread
             yield None if renderer is None else renderer.render(snapshot, truth, shown, latest, facts, used, spread)
 
@@ -186,7 +187,7 @@ def _log_frame(rerun: RerunRecording, episode: Episode, snapshot: Snapshot, trut
 
 
 def export_replay(sources: list[ReplaySource], engine: StreamingEngine, out: Path | None,
-                  progress: Callable[[int], None] = lambda frame: None, hand3d: bool = False,
+                  progress: Callable[[ReplaySummary], None] = lambda summary: None, hand3d: bool = False,
                   rerun: RerunRecording | None = None, caption: tuple[str, ...] = (),
                   footers: list[str] | None = None) -> list[ReplaySummary]:
     """Write the comparison video of the sources' whole episodes, one after the other, to `out` (H.264 MP4; None:

@@ -7,8 +7,10 @@ import contextlib
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
+from touchanything.app.sessions.budget_watch import BudgetWatch
 from touchanything.app.sessions.engine_choice import (
     ModelChoice,
     build_engine,
@@ -34,11 +36,13 @@ from touchanything.viz.rerun_recording import RerunTarget
 
 
 def replay_to_video(paths: Sequence[Path], choice: ModelChoice, out: Path | None,
-                    hand3d: bool = False, rerun: RerunTarget | None = None) -> list[ReplaySummary]:
+                    hand3d: bool = False, rerun: RerunTarget | None = None,
+                    budget: BudgetWatch | None = None) -> list[ReplaySummary]:
     """Export the episodes, one after the other, through the choice's setting into the comparison video `out`
     (None: none; `hand3d`: with the 3D hands panel) and the Rerun recording `rerun` (one episode); prints each episode and its summary, for
-    several the overall one, and where the outputs are. The outputs were checked by the caller
-    (`check_video_output`, `rerun_target`)."""
+    several the overall one, and where the outputs are; with the `budget` a setting was chosen for, says
+    during the run when its steps go over it and after the run how they kept it. The outputs were checked by
+    the caller (`check_video_output`, `rerun_target`)."""
     engine, views = build_engine(choice), choice.setting.views
     with contextlib.ExitStack() as opened:
         episodes = [opened.enter_context(open_episode(path)) for path in paths]
@@ -58,7 +62,12 @@ def replay_to_video(paths: Sequence[Path], choice: ModelChoice, out: Path | None
                                              session_properties(choice, engine, episodes[0]))
         try:
             with tqdm(total=sum(e.num_frames for e in episodes), unit="frame", desc="replay") as bar:
-                summaries = export_replay(sources, engine, out, lambda frame: bar.update(1), hand3d, recording, model, footers)
+                def frame_done(summary: ReplaySummary) -> None:
+                    bar.update(1)
+                    if budget is not None and (line := budget.during(summary.step_ms)):
+                        bar.write(line)
+
+                summaries = export_replay(sources, engine, out, frame_done, hand3d, recording, model, footers)
         except BaseException:
             if recording is not None:
                 recording.close()  # what was logged stays readable
@@ -69,6 +78,9 @@ def replay_to_video(paths: Sequence[Path], choice: ModelChoice, out: Path | None
                 print("\n".join(f"  - {problem}" for problem in found))
     print(f"model     {model_label(choice, engine)}, {engine.runtime.capture}")
     print(f"setting   {setting}")
+    steps = [ms for s in summaries for ms in s.step_ms]
+    if budget is not None and (line := budget.after(float(np.percentile(steps, 99)) if steps else None)):
+        print(line)
     if len(model) > 1:
         print(f"note      {model[1]}")
     for k, summary in enumerate(summaries):
@@ -92,14 +104,16 @@ def check_video_output(out: Path, inputs: Iterable[Path | None], overwrite: bool
 
 def replay_in_dashboard(path: Path, choice: ModelChoice, max_frames: int | None = None,
                         screenshot: Path | None = None, rerun: RerunTarget | None = None,
-                        loop: bool = False, atlas: Path | None = None, tour: Sequence[Path] = ()) -> Dashboard:
+                        loop: bool = False, atlas: Path | None = None, tour: Sequence[Path] = (),
+                        budget: BudgetWatch | None = None) -> Dashboard:
     """Play the episode in the dashboard (at the choice's setting) until its window closes (or `max_frames` were rendered; then
     `screenshot` is saved); returns the closed dashboard (its stats, screenshots and session). A model
     that fails to load is reported in the dashboard, which then shows the cameras and the measured
     pressure only. `rerun`: everything shown also goes into that Rerun recording. `loop`: play the
     episode over and over (else hold at its end). `atlas`: the atlas the atlas panel shows (None: the
     committed one). `tour`: more episodes, played after this one in turn, over and over (`ReplaySession`; not
-    with `rerun`, whose recording holds one episode)."""
+    with `rerun`, whose recording holds one episode). `budget`: the budget the setting was chosen for (an overrun
+    becomes the dashboard's message)."""
     with contextlib.ExitStack() as opened:
         episode, *others = [opened.enter_context(open_episode(p)) for p in (path, *tour)]
         for where, each in zip((path, *tour), (episode, *others)):
@@ -113,6 +127,7 @@ def replay_in_dashboard(path: Path, choice: ModelChoice, max_frames: int | None 
             print(message)
         session = ReplaySession(episode, engine, choice, message, pose_source_for(episode), loop, others)
         session.set_views(choice.setting.views)
+        session.budget = budget
         if atlas is not None:
             session.use_atlas(atlas)
         recording = rerun and open_recording(rerun, f"replay {episode_name(episode)}", session_properties(choice, engine, episode))

@@ -8,6 +8,7 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
+from touchanything.app.sessions.budget_watch import BudgetWatch
 from touchanything.app.sessions.bundled import ATLAS_FILE, SAMPLE_DIR, bundled_models
 from touchanything.app.sessions.engine_choice import ModelChoice
 from touchanything.devices.errors import UserError, require_finite_positive
@@ -46,10 +47,17 @@ class PickedSetting:
     checkpoint: Path
     p99_ms: float | None
     line: str
+    budget_ms: float | None = None
 
     def model_choice(self, device: str) -> ModelChoice:
         """The row's setting, every knob of it, on `device`, with its checkpoint here."""
         return ModelChoice(self.checkpoint, dataclasses.replace(self.row.setting, device=device))
+
+    def budget_watch(self) -> BudgetWatch | None:
+        """What watches the run keep the budget the setting was chosen for (None: a named setting)."""
+        if self.budget_ms is None or self.p99_ms is None:
+            return None
+        return BudgetWatch(self.row.name, self.budget_ms, self.p99_ms)
 
 
 def display_atlas(atlas: Path) -> tuple[tuple[AtlasRow, ...], str]:
@@ -106,7 +114,7 @@ class SettingRequest:
 
         choice = choose_within_budget(self.rows, self.budget_ms, measure, progress=lambda line: print(line, flush=True))
         return PickedSetting(choice.row, self.checkpoints[choice.row.setting.model], choice.p99_ms,
-                             choice_line(choice, self.budget_ms))
+                             choice_line(choice, self.budget_ms), self.budget_ms)
 
 
 def budget_request(atlas: Path, budget_ms: float, model_folders: list[Path] | None = None) -> SettingRequest:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from touchanything.devices.output_safety import replacing, write_text
 from touchanything.inference.evaluation.bench_plot import pareto_plot
+from touchanything.inference.evaluation.bootstrap import thin_strata
 
 P99_TARGET_MS = 33.0
 OUTPUT_FILES = ("engine.json", "engine.md", "engine_pareto.png")
@@ -127,6 +128,12 @@ def held_out_line(record: dict) -> str:
     return f"{len(trajectories)} held-out trajectories ({parts}) of {record['accuracy_data']}"
 
 
+def _thin_note(record: dict) -> list[str]:
+    """A warning paragraph when a split has too few trajectories for its interval (`bootstrap.thin_strata`)."""
+    thin = thin_strata([t["split"] for t in record.get("trajectories") or []])
+    return [f"**Warning:** {thin}.", ""] if thin else []
+
+
 def _split_cells(row: dict, splits: list[str]) -> list[str]:
     per = row.get("per_split") or {}
     return [_with_interval(per.get(s, {}).get("volumetric_iou"), per.get(s, {}).get("volumetric_iou_ci95")) for s in splits]
@@ -139,6 +146,7 @@ def markdown(record: dict) -> str:
              f"{record['machine']}; {'quick' if record['quick'] else 'full'} run{minutes}; accuracy on "
              f"{held_out_line(record)}: official metrics per trajectory (causal, every frame replayed), their mean over "
              "trajectories, and a 95 % bootstrap interval (2000 draws of the trajectories, within each split).", "",
+             *_thin_note(record),
              "| setting | p50 ms | p99 ms | frames/s | look-ahead ms | volumetric IoU [95 % CI] | contact IoU [95 % CI] | "
              + "".join(f"V-IoU {s} | " for s in splits) + "agreement V-IoU | peak RSS MB |",
              "|---|---|---|---|---|---|---|" + "---|" * len(splits) + "---|---|"]

@@ -19,7 +19,21 @@ RESAMPLES = 2000
 SEED = 0
 INTERVAL_PERCENTILES = (2.5, 97.5)
 FEW_TRAJECTORIES = 20
-"""Below this many trajectories the intervals are wide; the bench says so."""
+"""Below this many trajectories (in all, or in one split) an interval is wide and unreliable; the bench says so."""
+
+
+def thin_strata(strata: Sequence[str]) -> str:
+    """"" when every stratum (split) has at least `FEW_TRAJECTORIES` trajectories, else one sentence naming those
+    that have fewer ("only 6 test_unseen trajectories: their intervals are wide and unreliable; …")."""
+    counts: dict[str, int] = {}
+    for label in strata:
+        counts[label] = counts.get(label, 0) + 1
+    thin = [f"{n} {label}" for label, n in counts.items() if n < FEW_TRAJECTORIES]
+    if not thin:
+        return ""
+    return (f"only {' and '.join(thin)} trajectories: their intervals are wide and unreliable (a bootstrap over fewer "
+            f"than {FEW_TRAJECTORIES} trajectories understates the spread; e.g. data/heldout from "
+            "scripts/make_datasets.sh has 67 and 41)")
 
 
 class Resampler:
