@@ -189,3 +189,26 @@ def test_spread_error_correlation_on_a_hand_worked_example():
     frames = [np.stack(x) for x in ((pressure,) * 3, (spread, flat, perfect), (measured,) * 3, (both,) * 3)]
     assert trajectory_correlation(*frames) == pytest.approx((0.2 + 1.0) / 2)
     assert np.isnan(trajectory_correlation(*(f[1:2] for f in frames)))
+
+
+def test_bench_measures_an_ensemble_beside_its_single_member(tmp_path):
+    """The atlas's grid adds each ensemble size the model has (torch fp32 and ONNX int8); bench builds the members
+    from beside the checkpoint and replays them like any setting: the K = 2 row of identical members has the
+    single model's accuracy."""
+    from touchanything.app.sessions.bundled import sample_episodes
+    from touchanything.inference.evaluation.bench import BenchPlan, bench_model
+    from touchanything.inference.evaluation.bench_accuracy import HeldOut
+    from touchanything.inference.evaluation.bench_data import latency_clip
+    from touchanything.inference.evaluation.bench_setting import settings_for
+
+    names = [s.name() for s in settings_for("pico", quick=True, members=3)]
+    assert names == ["pico/torch-fp32/all", "pico/onnx-int8/all", "pico/torch-fp32/all/members2",
+                     "pico/onnx-int8/all/members2", "pico/torch-fp32/all/members3", "pico/onnx-int8/all/members3"]
+    assert len(settings_for("pico", quick=False, members=8)) == 14 + 2 * 2 + 2  # 2, 4 and 8
+    checkpoint = ensemble_folder(tmp_path, [PICO])
+    path = sample_episodes()[0]
+    rows = bench_model("pico", load_model(checkpoint), HeldOut([(path, "episodes")], frames=30), latency_clip(path, 12),
+                       BenchPlan(True, rounds=1, per_round=3, naive_steps=2), lambda message: None, checkpoint).rows
+    by_name = {row["setting"]: row for row in rows}
+    assert by_name["pico/torch-fp32/all/members2"]["volumetric_iou"] == by_name["pico/torch-fp32/all"]["volumetric_iou"]
+    assert by_name["pico/torch-fp32/all/members2"]["p99_ms"] > 0

@@ -110,7 +110,7 @@ class SettingRequest:
         def measure(row: AtlasRow) -> float:
             name = row.setting.model
             models[name] = models.get(name) or load_model(self.checkpoints[name])
-            return probe_p99(models[name], row.setting, clip, PROBE_FRAMES[quick], device)
+            return probe_p99(models[name], row.setting, clip, PROBE_FRAMES[quick], device, self.checkpoints[name])
 
         choice = choose_within_budget(self.rows, self.budget_ms, measure, progress=lambda line: print(line, flush=True))
         return PickedSetting(choice.row, self.checkpoints[choice.row.setting.model], choice.p99_ms,

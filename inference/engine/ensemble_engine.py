@@ -108,3 +108,14 @@ def load_ensemble(checkpoint: Path, setting: EngineSetting, config: Path | None 
     paths = member_checkpoints(checkpoint, setting.members, config)
     models = [load_model(path, config if i == 0 else None) for i, path in enumerate(paths)]
     return EnsembleEngine(models, setting, onnx_dir=onnx_dir, threads=threads)
+
+
+def engine_for(model: TactileModel, checkpoint: Path | None, setting: EngineSetting, onnx_dir: Path | None = None,
+               threads: int | None = None) -> StreamingEngine | EnsembleEngine:
+    """The engine of `setting` for `model`, loaded from `checkpoint`: a StreamingEngine of `model` itself, or with
+    `members` > 1 the ensemble of `checkpoint` (UserError without a checkpoint). `onnx_dir`: member 1's export."""
+    if setting.members == 1:
+        return StreamingEngine(model, setting, onnx_dir=onnx_dir, threads=threads)
+    if checkpoint is None:
+        raise UserError(f"setting {setting.name()}: an ensemble is loaded from its checkpoint's folder; none given")
+    return load_ensemble(checkpoint, setting, onnx_dir=onnx_dir, threads=threads)

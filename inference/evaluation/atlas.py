@@ -135,12 +135,14 @@ def find_row(rows: list[AtlasRow], name: str, atlas: Path) -> AtlasRow:
     raise UserError(f"setting {name} is not in the atlas {atlas} (its most accurate: {known}, …)")
 
 
-def probe_p99(model: TactileModel, setting: EngineSetting, clip: list[Snapshot], frames: int, device: str) -> float:
+def probe_p99(model: TactileModel, setting: EngineSetting, clip: list[Snapshot], frames: int, device: str,
+              checkpoint: Path | None = None) -> float:
     """p99 per-frame step time (ms) of `setting` on this machine over `frames` frames of `clip` (after
-    PROBE_WARMUP untimed ones); ONNX graphs come from the user cache (exported on first use)."""
-    from touchanything.inference.engine.streaming_engine import StreamingEngine  # imported where used: --help loads this module
+    PROBE_WARMUP untimed ones); ONNX graphs come from the user cache (exported on first use); an ensemble
+    setting loads its members from beside `checkpoint`, the file `model` came from."""
+    from touchanything.inference.engine.ensemble_engine import engine_for  # imported where used: --help loads this module
 
-    engine = StreamingEngine(model, dataclasses.replace(setting, device=device))
+    engine = engine_for(model, checkpoint, dataclasses.replace(setting, device=device))
     times = []
     for i in range(PROBE_WARMUP + frames):
         snapshot = dataclasses.replace(clip[i % len(clip)], frame_index=i, t_us=int(time.monotonic() * 1e6))

@@ -26,6 +26,7 @@ from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.devices.view_sets import view_set_name
 from touchanything.inference.engine.engine_runtime import Runtime
 from touchanything.inference.engine.engine_setting import EngineSetting, compute_threads
+from touchanything.inference.engine.ensemble_engine import engine_for
 from touchanything.inference.engine.onnx_export import export_onnx
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_accuracy import HeldOut, ModelAccuracy, SettingAccuracy, model_accuracy
@@ -33,6 +34,7 @@ from touchanything.inference.evaluation.bench_data import resident_mb
 from touchanything.inference.evaluation.bench_setting import settings_for
 from touchanything.inference.evaluation.metrics import aggregate
 from touchanything.inference.evaluation.vision_share import vision_shares
+from touchanything.inference.model.ensemble_members import member_count
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.pose_encoder import prepare_poses
@@ -148,13 +150,15 @@ def bench_model(name: str, model: TactileModel, held_out: HeldOut | None, clip: 
     """Every setting of one model: accuracy on `held_out` (None: latency only, torch fp32 all views), then
     interleaved latency, then the naive comparison. `checkpoint` (the file the model came from) is what worker
     processes load; `checkpoint_sha256` is recorded in every row."""
-    settings = settings_for(name, plan.quick, plan.pose_only) if held_out is not None else [EngineSetting(name, device="cpu")]
+    members = member_count(checkpoint) if checkpoint is not None else 1
+    settings = (settings_for(name, plan.quick, plan.pose_only, members) if held_out is not None
+                else [EngineSetting(name, device="cpu")])
     with tempfile.TemporaryDirectory(prefix="touchanything-bench-") as folder:
         onnx_dir = Path(folder)
         if any(s.runtime == "onnx" for s in settings):
             progress(f"{name}: exporting ONNX graphs")
             export_onnx(model, onnx_dir, int8=True)
-        engines = {s: StreamingEngine(model, s, onnx_dir=onnx_dir if s.runtime == "onnx" else None)
+        engines = {s: engine_for(model, checkpoint, s, onnx_dir if s.runtime == "onnx" else None)
                    for s in settings if not s.blank}
         accuracy = (model_accuracy(model, checkpoint, settings, engines, onnx_dir, held_out, progress)
                     if held_out is not None else ModelAccuracy([], [], {}, []))

@@ -23,6 +23,7 @@ import numpy as np
 
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.engine.engine_setting import EngineSetting
+from touchanything.inference.engine.ensemble_engine import engine_for
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_data import BenchEpisode, load_episodes, resident_mb
 from touchanything.inference.evaluation.evaluation import trajectory_metrics
@@ -161,7 +162,7 @@ def _worker(job) -> WorkerPart:
 
     checkpoint, settings, pairs, size, frames, onnx_dir, threads, tag = job
     model = load_model(checkpoint)
-    engines = {s: StreamingEngine(model, s, onnx_dir=onnx_dir if s.runtime == "onnx" else None, threads=threads)
+    engines = {s: engine_for(model, checkpoint, s, onnx_dir if s.runtime == "onnx" else None, threads)
                for s in settings if not s.blank}
     def progress(message: str) -> None:
         print(f"  [{tag}] {message}", file=sys.stderr, flush=True)

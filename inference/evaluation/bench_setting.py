@@ -12,11 +12,16 @@ RATES = (2, 3)
 """The prediction rates (every k-th frame) the full grid measures besides every frame."""
 
 
-def settings_for(model: str, quick: bool, pose_only: bool = False) -> list[EngineSetting]:
+ENSEMBLE_SIZES = (2, 4, 8)
+"""The ensemble sizes (members) the grid measures, those a model's ensemble has enough members for."""
+
+
+def settings_for(model: str, quick: bool, pose_only: bool = False, members: int = 1) -> list[EngineSetting]:
     """The reference (torch fp32, all views, newest frame, on the CPU) first, then one knob at a time around it:
     precision and runtime, the partial view sets (torch fp32 and ONNX int8), the prediction rates (ONNX int8)
-    and the look-ahead output positions (torch fp32); `quick`: the reference and ONNX int8 only. With
-    `pose_only`, each followed by its pose-only twin (`blank`)."""
+    and the look-ahead output positions (torch fp32); `quick`: the reference and ONNX int8 only. A model whose
+    ensemble has `members` > 1 adds torch fp32 and ONNX int8 at each of `ENSEMBLE_SIZES` up to `members` (and
+    all of them). With `pose_only`, each followed by its pose-only twin (`blank`)."""
     base = EngineSetting(model, device="cpu")
     int8 = base.with_tier("onnx-int8")
     settings = [base, int8] if quick else (
@@ -24,6 +29,8 @@ def settings_for(model: str, quick: bool, pose_only: bool = False) -> list[Engin
         + [dataclasses.replace(s, views=v) for s in (base, int8) for v in PARTIAL_VIEWS]
         + [dataclasses.replace(int8, every=k) for k in RATES]
         + [dataclasses.replace(base, output=o) for o in OUTPUTS[1:]])
+    sizes = sorted({k for k in ENSEMBLE_SIZES if k <= members} | ({members} if members > 1 else set()))
+    settings += [dataclasses.replace(s, members=k) for k in sizes for s in (base, int8)]
     return [t for s in settings for t in ((s, dataclasses.replace(s, blank=True)) if pose_only else (s,))]
 
 

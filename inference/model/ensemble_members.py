@@ -30,6 +30,11 @@ def listed_members(checkpoint: Path) -> list[Path]:
     return [path.parent / m for m in members]
 
 
+def member_count(checkpoint: Path) -> int:
+    """How many members `checkpoint`'s ensemble has (1 without an ensemble file beside it)."""
+    return 1 + len(listed_members(checkpoint)) if (Path(checkpoint).parent / ENSEMBLE_FILE).is_file() else 1
+
+
 def _config(checkpoint: Path, config: Path | None = None) -> ModelConfig:
     source = find_config(checkpoint, config)
     return config_from_dict(read_config_file(source), str(source))
