@@ -81,9 +81,12 @@ def test_train_checkpoint_resume_and_eval(data, tmp_path, capsys):
     assert not (tmp_path / "run" / "checkpoint_epoch_3.pth").exists()
     assert checkpoint["epoch"] == 2
     assert set(checkpoint) >= {"model_state_dict", "optimizer_state_dict", "scheduler_state_dict", "loss", "metrics"}
-    resumed = Trainer(config(epochs=3), data, tmp_path / "run", log=lambda _: None)
+    said = []
+    resumed = Trainer(config(epochs=3), data, tmp_path / "run", log=said.append)
     resumed.resume(tmp_path / "run" / "last.pth")
     assert resumed.start_epoch == 2
+    best = checkpoint["metrics"]["best_val_loss"]
+    assert said[-1] == f"resumed from {tmp_path / 'run' / 'last.pth'}: 2 of 3 epochs done, best validation loss so far {best:.4f}"
     resumed.fit()
     # an uninterrupted run's schedule, by hand: warm-up epoch 1, then cosine over T_max = 3 − 1 = 2 epochs from
     # lr 1e-3: epoch 2 ends at 1e-6 + (1e-3 − 1e-6)(1 + cos(π/2))/2 = 5.005e-4, epoch 3 at min_lr 1e-6

@@ -142,6 +142,8 @@ class Trainer:
         self.scheduler.load_state_dict(checkpoint["scheduler_state_dict"])
         self.start_epoch = int(checkpoint.get("epoch", 0))
         self.result.best_val_loss = float((checkpoint.get("metrics") or {}).get("best_val_loss", math.inf))
+        self.log(f"resumed from {path}: {self.start_epoch} of {self.config.training.num_epochs} epochs done, best "
+                 f"validation loss so far {self.result.best_val_loss:.4f}")
 
     def _loader(self, dataset: ClipDataset, shuffle: bool) -> DataLoader:
         """This process's loader over `dataset` for the whole run: `training.num_workers` persistent workers,

@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# The frontier of docs/findings.md: three ways to buy accuracy with time, each one change from the bundled `pico`
+# (configs/pico.yaml on the 398 training trajectories of data/split_train_more.json), trained by the committed
+# configs and measured on the held-out set (data/heldout) and on a second fresh seed (data/fresh):
+#   data        pico and nano on twice the data (data/split_train_2x.json), beside both at 162 and 398
+#   resolution  pico at 96 and 128 px (configs/pico_96.yaml, configs/pico_128.yaml)
+#   ensembles   pico with seeds 1, 2 and 3 (configs/pico_seedN.yaml): with the bundled pico (seed 42) the members
+#               of a 4-member ensemble, all of one recipe and data
+# Resumable: a stopped run (a session that ends kills it) continues from its last.pth when this script is run
+# again; a finished run (data/runs/RUN/.done) and an evaluation whose results.json exists are skipped. Two
+# trainings run side by side, one torch thread each. Run from the repository root after scripts/make_datasets.sh.
+set -euo pipefail
+TA=.venv/bin/touchanything
+for needed in data/split_train.json data/split_train_more.json data/split_train_2x.json data/heldout/split.json \
+    data/fresh/split.json; do
+  [ -f "$needed" ] || { echo "$needed is missing: run scripts/make_datasets.sh first" >&2; exit 2; }
+done
+mkdir -p data/runs
+train() {  # train CONFIG RUN SPLIT_FILE: configs/CONFIG.yaml into data/runs/RUN, continued from its last.pth
+  local out=data/runs/$2 resume=()
+  [ -f "$out/.done" ] && return 0
+  [ -f "$out/last.pth" ] && resume=(--resume "$out/last.pth")
+  OMP_NUM_THREADS=1 $TA train --config "configs/$1.yaml" --data data/sim240_h5 --split-file "$3" --out "$out" \
+    "${resume[@]}" >> "data/runs/$2.train.log" 2>&1
+  touch "$out/.done"
+}
+evaluate() {  # evaluate RUN CHECKPOINT: all views, causal, both splits of the held-out set and of the fresh seed
+  for root in heldout fresh; do
+    for split in test_seen test_unseen; do
+      local out="data/runs/$1/${root}_$split"
+      [ -f "$out/results.json" ] || $TA eval --checkpoint "$2" --data "data/$root" --split $split --ego-path views \
+        --device cpu --views all --out "$out" --overwrite > /dev/null
+    done
+  done
+}
+SEEN=data/split_train.json MORE=data/split_train_more.json TWICE=data/split_train_2x.json
+train pico_seed1 pico_seed1 $MORE & train pico_96 pico_96 $MORE & wait
+train pico_seed2 pico_seed2 $MORE & train pico_seed3 pico_seed3 $MORE & wait
+train pico_128 pico_128 $MORE & train pico pico_2x $TWICE & wait
+train pico pico_162 $SEEN & train nano nano_more $MORE & wait
+train nano nano_2x $TWICE
+mkdir -p data/runs/bundled_pico data/runs/bundled_nano
+evaluate bundled_pico models/pico/best_model.pth
+evaluate bundled_nano models/nano/best_model.pth
+for run in pico_seed1 pico_seed2 pico_seed3 pico_96 pico_128 pico_2x pico_162 nano_more nano_2x; do
+  evaluate "$run" "data/runs/$run/best_model.pth"
+done
+.venv/bin/python scripts/held_out_table.py data/runs bundled_pico pico_162 pico_2x nano_more nano_2x pico_96 pico_128 \
+  pico_seed1 pico_seed2 pico_seed3 --against bundled_pico
