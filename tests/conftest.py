@@ -9,6 +9,9 @@ if "PYTEST_XDIST_WORKER_COUNT" in os.environ:
     # 2 workers × 2 spinning threads on 2 cores took 209 s where 1 thread each took 160 s (the heaviest modules). Set
     # before torch is first imported; the CLI processes that tests start inherit it. The serial run keeps every core.
     os.environ.setdefault("OMP_NUM_THREADS", str(max(1, (os.cpu_count() or 1) // int(os.environ["PYTEST_XDIST_WORKER_COUNT"]))))
+# The user caches the suite fills (ONNX exports of the bundled models, simulated episodes) live beside the checkout's
+# pytest cache, not in the user's home: a run never serves the user a test's file, nor a test the user's.
+os.environ["XDG_CACHE_HOME"] = str(Path(__file__).resolve().parents[1] / ".pytest_cache" / "xdg")
 
 import numpy as np
 import pytest

@@ -37,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
             bar.update(1)
 
         card = simulate_dataset(folder, config, on_episode=progress)
-    print(f"{card['episodes']} episodes, {card['frames']} frames at {card['generation_fps']} frames/s")
+    reused = f" ({card['from_cache']} copied from the cache of earlier runs)" if card["from_cache"] else ""
+    print(f"{card['episodes']} episodes, {card['frames']} frames at {card['generation_fps']} frames/s{reused}")
     for camera, v in card["contact_visibility"].items():
         print(f"contact visible from {camera}: {percent(v['share'])} of {v['contact_points']} contact points")
     ambiguity, error = card["pose_ambiguity"], card["pose_error_mm"]

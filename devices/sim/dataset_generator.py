@@ -4,6 +4,7 @@ pose error and the share of contact the pose alone cannot decide).
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import random
 import time
@@ -17,6 +18,7 @@ import numpy as np
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, partition_seen
 from touchanything.devices.errors import UserError, require_seed
 from touchanything.devices.sim.catalogue import SCENES, UNSEEN_OBJECTS
+from touchanything.devices.sim.episode_cache import restore, store
 from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_episode
 from touchanything.devices.sim.episode_stats import CAMERAS, EpisodeStats
 from touchanything.devices.sim.pose_ambiguity import pose_statistics
@@ -56,30 +58,36 @@ def episode_specs(config: SimulationConfig) -> list[EpisodeSpec]:
                         f"sim{config.seed:04d}_{i:05d}") for i in range(config.episodes)]
 
 
-def _generate(args: tuple[Path, EpisodeSpec]) -> EpisodeStats:
-    return generate_episode(*args)
+def _generate(args: tuple[Path, EpisodeSpec]) -> tuple[EpisodeStats, bool]:
+    """The episode of `spec` written under `root`, from the user cache of episodes when an earlier run made it
+    (`episode_cache`), else simulated and cached; and whether it came from the cache."""
+    root, spec = args
+    if (cached := restore(spec, root)) is not None:
+        return cached, True
+    stats = generate_episode(root, spec)
+    store(spec, stats, root)
+    return stats, False
 
 
 def simulate_dataset(out: Path, config: SimulationConfig,
                      on_episode: Callable[[EpisodeStats], None] | None = None) -> dict:
-    """Write the episodes, `split.json` and the dataset card under `out`; returns the card."""
+    """Write the episodes, `split.json` and the dataset card under `out`; returns the card (`from_cache`: how many
+    episodes an earlier run had made, copied from the user cache of episodes)."""
     check_config(config)
     started = time.perf_counter()
     specs = episode_specs(config)
     jobs = [(Path(out), spec) for spec in specs]
     results: list[EpisodeStats] = []
-    if config.workers == 1:
-        for job in jobs:
-            results.append(_generate(job))
-            on_episode and on_episode(results[-1])
-    else:
-        with ProcessPoolExecutor(max_workers=config.workers) as pool:
-            for stats in pool.map(_generate, jobs):
-                results.append(stats)
-                on_episode and on_episode(stats)
+    cached = 0
+    with contextlib.ExitStack() as stack:
+        pool = stack.enter_context(ProcessPoolExecutor(max_workers=config.workers)) if config.workers > 1 else None
+        for stats, from_cache in (pool.map(_generate, jobs) if pool else map(_generate, jobs)):
+            results.append(stats)
+            cached += from_cache
+            on_episode and on_episode(stats)
     seconds = time.perf_counter() - started
     write_split(Path(out), results, config.seed)
-    card = dataset_card(results, config, seconds, Path(out))
+    card = dataset_card(results, config, seconds, Path(out)) | {"from_cache": cached}
     (Path(out) / CARD_JSON).write_text(json.dumps(card, indent=1) + "\n")
     (Path(out) / CARD_MD).write_text(card_markdown(card))
     return card
