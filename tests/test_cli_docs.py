@@ -10,7 +10,7 @@ import pytest
 
 from touchanything.app.cli import build_parser, main
 from touchanything.app.commands.eval_command import view_configurations
-from touchanything.app.commands.replay_command import selected_views
+from touchanything.app.commands.replay_command import given_choice
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.view_sets import parse_view_set, view_set_name
 
@@ -73,8 +73,8 @@ def test_view_names_are_one_set_for_every_command(tmp_path, capsys):
     assert view_set_name(("ego", "wrist_right")) == "ego+right" and view_set_name(("wrist_left",)) == "left"
     parser = build_parser()
     for spelling in (["ego", "wrist_left"], ["ego", "left"], ["ego+left"], ["left+ego"]):
-        assert selected_views(parser.parse_args(["replay", "EP", "--views", *spelling]), None) == ("ego", "wrist_left")
-    assert selected_views(parser.parse_args(["replay", "EP"]), None) == VIEW_NAMES
+        assert given_choice(parser.parse_args(["replay", "EP", "--views", *spelling])).setting.views == ("ego", "wrist_left")
+    assert given_choice(parser.parse_args(["replay", "EP"])).setting.views == VIEW_NAMES
     evaluation = ["eval", "--checkpoint", "C", "--data", "D", "--views"]
     assert view_configurations(parser.parse_args([*evaluation, "ego+wrist_left", "all", "ego+left"]).views) == ["ego+left", "all"]
     assert view_configurations(parser.parse_args(evaluation[:-1]).views) == ["all"]
