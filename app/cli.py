@@ -42,12 +42,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run one command; without one, print the commands (exit status 2)."""
+    """Run one command; without one, print the commands (what `--help` prints, exit status 0)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
         parser.print_help()
-        return 2
+        return 0
     try:
         with stoppable():
             return args.run(args)

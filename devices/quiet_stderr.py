@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import tempfile
 import threading
 from collections.abc import Iterator
 
@@ -19,6 +20,25 @@ def quiet_stderr() -> Iterator[None]:
         yield
     finally:
         os.dup2(saved, 2)
+        os.close(saved)
+
+
+@contextlib.contextmanager
+def captured_stderr() -> Iterator[list[str]]:
+    """File descriptor 2 into a private file for the duration; the yielded list receives its lines (stripped,
+    empty ones left out) when the block ends, so the caller can say what the library said in its own words."""
+    lines: list[str] = []
+    saved = os.dup(2)
+    try:
+        with tempfile.TemporaryFile() as capture:
+            os.dup2(capture.fileno(), 2)
+            try:
+                yield lines
+            finally:
+                os.dup2(saved, 2)
+                capture.seek(0)
+                lines += [t for line in capture.read().decode(errors="replace").splitlines() if (t := line.strip())]
+    finally:
         os.close(saved)
 
 

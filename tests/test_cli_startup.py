@@ -66,3 +66,13 @@ def test_help_answers_within_two_seconds():
         subprocess.run([sys.executable, "-m", "touchanything.app.cli", "--help"], capture_output=True, check=True, timeout=60)
         times.append(time.perf_counter() - began)
     assert min(times) < 2.0, f"touchanything --help took {min(times):.2f} s at best of 3"
+
+
+@pytest.mark.parametrize("arguments", [
+    ["replay", "nope"], ["demo", "nope", "--headless"],
+    ["replay", "{episode}", "--precision", "fp16", "--device", "cpu", "--headless"],
+], ids=" ".join)
+def test_a_one_line_user_error_comes_before_torch_loads(arguments, episode_dir):
+    """A bad path, or fp16 on the CPU, took 3.4–9.9 s on a loaded machine while torch loaded first."""
+    result = run_cli(*(a.format(episode=episode_dir) for a in arguments))
+    assert result["status"] == 2 and "torch" not in result["loaded"], result

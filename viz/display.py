@@ -10,7 +10,7 @@ import functools
 import os
 import socket
 
-from touchanything.devices.quiet_stderr import quiet_stderr
+from touchanything.devices.quiet_stderr import captured_stderr
 
 X11_SOCKET_DIR = "/tmp/.X11-unix"
 X11_TCP_BASE = 6000
@@ -39,14 +39,17 @@ def display_problem(display: str | None = None, timeout: float = 1.0) -> str | N
 
 
 def _open_problem(display: str) -> str | None:
-    """Open and close `display` with libX11 (its own complaint on stderr is kept off the terminal)."""
+    """Open and close `display` with libX11; its own complaint on stderr is kept off the terminal and becomes the
+    reason of the one line ("Authorization required, but no authorization protocol specified")."""
     xlib = _xlib()
     if xlib is None:
         return "the X client library libX11 is not installed (apt-get install libx11-6)"
-    with quiet_stderr():
+    with captured_stderr() as said:
         handle = xlib.XOpenDisplay(display.encode())
     if not handle:
-        return f"X display {display} refused the connection (not authorised? check XAUTHORITY or the server's xhost list)"
+        reason = "; ".join(said) or "no reason given by libX11"
+        return (f"X display {display} refused the connection: {reason} (check XAUTHORITY or the server's xhost "
+                "list)")
     xlib.XCloseDisplay(handle)
     return None
 

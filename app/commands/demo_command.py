@@ -55,7 +55,7 @@ def tour_order(paths: list[Path]) -> list[Path]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
+    from touchanything.app.sessions.replay_inputs import check_episodes, check_video_output
 
     paths = [args.episode] if args.episode is not None else tour_order(sample_episodes())
     if not paths:
@@ -63,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
     if len(paths) > 1 and (args.rerun or args.rerun_serve is not None):
         print(f"demo      a Rerun recording holds one episode: {paths[0]} only (without --rerun the demo tours all {len(paths)})")
         paths = paths[:1]
+    check_episodes(paths)  # before anything loads torch: a bad path is one line at once
     request = setting_request(args)
     given = None if request else (export_choice(args.onnx, args.device) if args.onnx is not None
                                   else choose(default_checkpoint(), device=args.device))
@@ -75,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
         check_video_output(args.out, inputs, args.overwrite)
     picked = picked_setting(request, args.device)
     choice = picked.model_choice(args.device) if picked else given
+    from touchanything.app.sessions.replay_runs import replay_in_dashboard, replay_to_video  # loads torch
+
     if args.headless or problem:
         replay_to_video(paths, choice, args.out, args.hand3d, rerun, picked and picked.budget_watch())
         print(f"watch it with any video player: {args.out}")

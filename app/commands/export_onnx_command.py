@@ -26,10 +26,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                              "is kept")
     parser.add_argument("--int8", action="store_true", help="also write int8 graphs (dynamic quantisation)")
     parser.add_argument("--overwrite", action="store_true",
-                        help="replace files in --out that have the names of the export's files but are not listed "
-                             "by an earlier export there, and write into a non-empty --out that holds no earlier "
-                             "export (default: refuse; the folder's other files are kept, and an input of the "
-                             "command is never replaced)")
+                        help="write into a non-empty --out that holds no earlier export, and replace a file there "
+                             "that has the name of an export file but no earlier export wrote (default: refuse; "
+                             "the folder's other files are kept; an input of the command is never replaced)")
     parser.set_defaults(run=run)
 
 

@@ -77,8 +77,9 @@ def default_video(path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from touchanything.app.sessions.replay_runs import check_video_output, replay_in_dashboard, replay_to_video
+    from touchanything.app.sessions.replay_inputs import check_episodes, check_video_output
 
+    check_episodes([args.episode])  # before anything loads torch: a bad path is one line at once
     request = setting_request(args)
     given = None if request else given_choice(args)
     inputs = (args.episode, *(request.inputs if request else choice_inputs(given)))
@@ -89,6 +90,8 @@ def run(args: argparse.Namespace) -> int:
         check_video_output(out, inputs, args.overwrite)
     picked = picked_setting(request, args.device)
     choice = picked.model_choice(args.device) if picked else given
+    from touchanything.app.sessions.replay_runs import replay_in_dashboard, replay_to_video  # loads torch
+
     if not headless and rerun is not None and (problem := display_problem()):
         print(f"no dashboard: {problem}. Writing the Rerun recording only (--headless: the comparison video too).")
         replay_to_video([args.episode], choice, None, rerun=rerun, budget=picked and picked.budget_watch())

@@ -13,7 +13,7 @@ from touchanything.devices.view_sets import parse_view_set
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.onnx_manifest import export_source
 from touchanything.inference.model.model_card import read_card
-from touchanything.inference.model.torch_device import DEVICE_HELP, device_label
+from touchanything.inference.model.torch_device import DEVICE_HELP, check_precision_early, device_label
 
 if TYPE_CHECKING:
     import torch
@@ -39,6 +39,10 @@ class ModelChoice:
     setting: EngineSetting
     config: Path | None = None
     onnx_dir: Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.setting.runtime == "torch":  # what runs here: a GPU precision without a GPU, before torch loads
+            check_precision_early(self.setting.precision, self.setting.device)
 
     def with_setting(self, **changes) -> ModelChoice:
         """The same files at a setting with `changes` (`runtime=`, `every=`, `views=`, …)."""

@@ -4,7 +4,7 @@ or, for a plain video, are estimated from its frames (`pose_source_for`)."""
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -20,16 +20,15 @@ from touchanything.app.sessions.engine_choice import (
 )
 from touchanything.app.sessions.episode_summary import episode_lines
 from touchanything.app.sessions.replay_export import ReplaySummary, export_replay, log_episode_videos, tour_lines
+from touchanything.app.sessions.replay_inputs import require_ego
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.app.sessions.rerun_output import episode_name, finish, open_recording, session_properties
 from touchanything.app.sessions.rerun_sink import RerunSink
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import is_plain_video, open_episode
 from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import check_output
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.viz.comparison_video import is_comparison_video
 from touchanything.viz.dashboard.dashboard import Dashboard
 from touchanything.viz.display import display_problem
 from touchanything.viz.rerun_recording import RerunTarget
@@ -39,15 +38,17 @@ def replay_to_video(paths: Sequence[Path], choice: ModelChoice, out: Path | None
                     hand3d: bool = False, rerun: RerunTarget | None = None,
                     budget: BudgetWatch | None = None) -> list[ReplaySummary]:
     """Export the episodes, one after the other, through the choice's setting into the comparison video `out`
-    (None: none; `hand3d`: with the 3D hands panel) and the Rerun recording `rerun` (one episode); prints each episode and its summary, for
-    several the overall one, and where the outputs are; with the `budget` a setting was chosen for, says
-    during the run when its steps go over it and after the run how they kept it. The outputs were checked by
+    (None: none; `hand3d`: with the 3D hands panel) and the Rerun recording `rerun` (one episode); prints each
+    episode and its summary, for several the overall one, and where the outputs are; with the `budget` a setting
+    was chosen for, says during the run when its steps go over it and after the run how they kept it. The
+    episodes are opened before the model loads (a bad path is one line at once). The outputs were checked by
     the caller (`check_video_output`, `rerun_target`)."""
-    engine, views = build_engine(choice), choice.setting.views
+    views = choice.setting.views
     with contextlib.ExitStack() as opened:
         episodes = [opened.enter_context(open_episode(path)) for path in paths]
         for path, episode in zip(paths, episodes):
-            _require_ego(path, episode)
+            require_ego(path, episode)
+        engine = build_engine(choice)
         sources = [ReplaySource(e, ReplayConfig(speed=None, views=views, pose_source=pose_source_for(e))) for e in episodes]
         camera = any(pose_source_for(e) == "camera" for e in episodes)
         model = tuple(line for line in (model_name(choice), illustrative_note(choice, camera)) if line)
@@ -94,14 +95,6 @@ def replay_to_video(paths: Sequence[Path], choice: ModelChoice, out: Path | None
     return summaries
 
 
-def check_video_output(out: Path, inputs: Iterable[Path | None], overwrite: bool) -> None:
-    """Before any work: the comparison video `out` is an .mp4 and passes the output rule against the command's
-    `inputs` (an earlier comparison video is replaced without `overwrite`)."""
-    if out.suffix.lower() != ".mp4":
-        raise UserError(f"{out}: the video must be an .mp4 file")
-    check_output(out, inputs, overwrite, own=is_comparison_video)
-
-
 def replay_in_dashboard(path: Path, choice: ModelChoice, max_frames: int | None = None,
                         screenshot: Path | None = None, rerun: RerunTarget | None = None,
                         loop: bool = False, atlas: Path | None = None, tour: Sequence[Path] = (),
@@ -117,7 +110,7 @@ def replay_in_dashboard(path: Path, choice: ModelChoice, max_frames: int | None 
     with contextlib.ExitStack() as opened:
         episode, *others = [opened.enter_context(open_episode(p)) for p in (path, *tour)]
         for where, each in zip((path, *tour), (episode, *others)):
-            _require_ego(where, each)
+            require_ego(where, each)
         if problem := display_problem():
             raise UserError(f"cannot open the dashboard: {problem}; use --headless to write a video instead")
         try:
@@ -147,8 +140,3 @@ def replay_in_dashboard(path: Path, choice: ModelChoice, max_frames: int | None 
 def pose_source_for(episode: Episode) -> str:
     """"camera" (estimated from the ego view) for a plain video, else "wilor" (the episode's WiLoR file)."""
     return "camera" if is_plain_video(episode) else "wilor"
-
-
-def _require_ego(path: Path, episode: Episode) -> None:
-    if episode.views.get("ego") is None:
-        raise UserError(f"{path}: no ego (chest) video; the model needs it")

@@ -45,11 +45,25 @@ def resolve_device(name: str, local_rank: int = 0) -> torch.device:
     return torch.device(f"cuda:{index}")
 
 
+GPU_PRECISIONS = ("fp16", "tf32")
+"""Precisions a CUDA GPU offers and a CPU does not."""
+NVIDIA_DEVICE_FILES = ("/dev/nvidiactl", "/dev/dxg")
+"""Device files one of which a CUDA GPU needs (Linux; WSL): without them CUDA cannot be there."""
+
+
 def check_precision(precision: str, device: torch.device) -> None:
     """UserError for an unknown precision, or fp16 or tf32 on the CPU."""
     if precision not in PRECISIONS:
         raise UserError(f"unknown precision {precision!r}; choose from {', '.join(PRECISIONS)}")
-    if precision in ("fp16", "tf32") and device.type == "cpu":
+    if precision in GPU_PRECISIONS and device.type == "cpu":
+        raise UserError(f"{precision} needs a CUDA GPU (--device cuda); on the CPU use fp32 or bf16")
+
+
+def check_precision_early(precision: str, device: str) -> None:
+    """`check_precision` where it needs no torch (a one-line error then comes before torch loads, seconds
+    sooner): a GPU precision on `--device cpu`, or on `auto` where no NVIDIA device file exists."""
+    no_gpu = device == "cpu" or (device == "auto" and not any(map(os.path.exists, NVIDIA_DEVICE_FILES)))
+    if precision in GPU_PRECISIONS and no_gpu:
         raise UserError(f"{precision} needs a CUDA GPU (--device cuda); on the CPU use fp32 or bf16")
 
 
