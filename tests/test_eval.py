@@ -135,6 +135,13 @@ def test_eval_bad_options(sim_hdf5_root, tiny_checkpoint, tmp_path, capsys, extr
     assert message in err and "Traceback" not in err
 
 
+def test_eval_on_a_root_without_a_split_says_how_to_make_one(tiny_checkpoint, tmp_path, capsys):
+    assert main(["eval", "--checkpoint", str(tiny_checkpoint), "--data", str(tmp_path)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"touchanything eval: error: {tmp_path / 'split.json'}: not found; make one with `touchanything split "
+        f"{tmp_path}`, or name a split file with --split-file")
+
+
 def test_eval_missing_checkpoint(sim_hdf5_root, tmp_path, capsys):
     argv = ["eval", "--checkpoint", str(tmp_path / "none.pth"), "--data", str(sim_hdf5_root), "--split", nonempty_split(sim_hdf5_root)]
     assert main(argv) == 2

@@ -105,3 +105,13 @@ def test_running_metrics_by_hand_at_a_threshold_of_0_2():
             assert got[key] == pytest.approx(want, abs=1e-6), (kind, key)  # float32 maps: 1e-6
     assert official.cumulative()["contact_iou"] == pytest.approx(2 / 3) and official.cumulative()["temporal_accuracy"] == 0.75
     assert metrics.frames == 5
+
+
+def test_no_engine_figure_without_a_prediction():
+    """A plain video where no hand was found printed "engine 4.4 ms per frame" with nothing predicted."""
+    nothing = ReplaySummary(frames=3, no_pose=3, step_ms=[4.0, 4.5, 5.0], latency_ms=[4.0, 4.5, 5.0])
+    assert not any(line.startswith("engine") for line in nothing.lines())
+    assert nothing.lines()[0] == "frames    3 replayed (no video written), 0 with a prediction, 3 without a hand pose " \
+                                 "(nothing predicted)"
+    some = ReplaySummary(frames=3, predicted=1, no_pose=2, step_ms=[4.0, 4.5, 5.0], latency_ms=[4.0, 4.5, 5.0], video=True)
+    assert "engine    4.5 ms per frame (p99 5.0); latency p50 4.5 ms, p99 5.0 ms" in some.lines()

@@ -155,6 +155,9 @@ def trajectory_frames(episode, prediction, gt, hand3d: bool = False, used: tuple
 def split_files(data: Path, split: str, split_file: Path | None, num_traj: int | None) -> list[Path]:
     from touchanything.devices.episodes.episode_loader import episode_exists
 
+    if split_file is None and not (data / SPLIT_FILE).exists():
+        raise UserError(f"{data / SPLIT_FILE}: not found; make one with `touchanything split {data}`, or name a split "
+                        "file with --split-file")
     files = read_split(split_file or data / SPLIT_FILE)[split]
     if num_traj is not None:
         if num_traj < 1:

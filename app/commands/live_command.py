@@ -117,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"cannot open the dashboard: {problem}; use --headless")
     request = setting_request(args)
     target = rerun_target(args, (args.scene, args.onnx, *(request.inputs if request else ())), LIVE_IMAGE_SCALE)
+    print(f"starting  the rig of {args.scene} and loading the model (devices connect, the model loads: seconds)…",
+          flush=True)
     session = open_live_session(args.scene, args.device, picked_setting(request, args.device), args.onnx)
     session.use_atlas(args.atlas)
     engine = session.live and session.live.engine

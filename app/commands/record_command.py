@@ -32,6 +32,7 @@ def run(args: argparse.Namespace) -> int:
     if args.seconds is not None:
         require_finite_positive("--seconds", args.seconds)
     recorder = Recorder(RecorderConfig(args.out, fsync_s=scene.recording.fsync_s))
+    print(f"starting  the rig of {args.scene} (its devices connect: seconds)…", flush=True)
     rig = LiveRig(scene)
     clock = rig.start()
     try:

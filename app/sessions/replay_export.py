@@ -94,7 +94,7 @@ class ReplaySummary:
                                                 if k != "mae_left" and k != "mae_right"))
         if sum(self.lamps_judged):
             out.append(self.lamp_line())
-        if self.step_ms:
+        if self.step_ms and self.predicted:  # an engine time describes predictions: none, no figure
             step, latency = np.percentile(self.step_ms, [50, 99]), np.percentile(self.latency_ms, [50, 99])
             out.append(f"engine    {step[0]:.1f} ms per frame (p99 {step[1]:.1f}); latency p50 {latency[0]:.1f} ms, "
                        f"p99 {latency[1]:.1f} ms")
