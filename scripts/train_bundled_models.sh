@@ -8,7 +8,7 @@
 # nano, and both baselines, trained the same way. Runs the trainings side by side, one torch thread each
 # (docs/training.md has the times on the 2-core CPU machine). Run from the repository root after `make test` (or any
 # command that created .venv). The data come from scripts/make_datasets.sh; the atlas of the bundled models is then
-# `touchanything bench --data data/heldout --workers 2 --out docs/bench`.
+# `touchanything bench --data data/heldout --workers 2 --out models/atlas`.
 set -euo pipefail
 TA=.venv/bin/touchanything
 bash scripts/make_datasets.sh

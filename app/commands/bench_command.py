@@ -46,7 +46,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                              "gain; with --budget-ms, a shorter latency probe")
     parser.add_argument("--out", type=Path, default=OUTPUT_DIR / "bench",
                         help=f"folder for engine.{{json,md}} and the plot (default {OUTPUT_DIR / 'bench'} in the working "
-                             "directory; the committed atlas is docs/bench)")
+                             "directory; the bundled atlas is models/atlas, written with --out models/atlas --overwrite)")
     parser.add_argument("--data", type=Path, default=SAMPLE_DIR,
                         help="held-out trajectories with ground truth: a dataset root with a split.json (its test_seen and "
                              "test_unseen lists, or --splits), or a folder of episodes (default: the bundled sample)")
@@ -67,7 +67,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="instead of the atlas: probe the settings' p99 latency here and print the most accurate one "
                              "(accuracy from --atlas) whose p99 fits MS, with the command that runs it; writes nothing")
     parser.add_argument("--atlas", type=Path, default=ATLAS_FILE,
-                        help="with --budget-ms: the atlas to take accuracy from (default: the committed docs/bench/engine.json)")
+                        help="with --budget-ms: the atlas to take accuracy from (default: the committed models/atlas/engine.json)")
     add_device_argument(parser)
     add_overwrite_argument(parser, "--out's engine.json, engine.md and plot (those an earlier bench wrote there are replaced anyway)")
     parser.set_defaults(run=run)

@@ -1,14 +1,22 @@
-"""What ships with the checkout: the bundled models under `models/`, the sample episodes under
-`recordings/sample/` and the speed/accuracy atlas of the bundled models (`docs/bench/engine.json`); and the
-default output folder."""
+"""What ships with the code, found the way an installed package finds its files (`importlib.resources`): the
+bundled models (`touchanything.models`: the checkout's `models/`), the speed/accuracy atlas of the bundled models
+beside them (`models/atlas/engine.json`), and the sample episodes (`touchanything.sample`: the checkout's
+`recordings/sample/`); and the default output folder. The same paths hold in an editable install (the
+checkout's folders) and in a wheel (copies under the installed package); docs/layout.md."""
 from __future__ import annotations
 
+from importlib.resources import files
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
-MODELS_DIR = ROOT / "models"
-SAMPLE_DIR = ROOT / "recordings" / "sample"
-ATLAS_FILE = ROOT / "docs" / "bench" / "engine.json"
+
+def _package_folder(package: str) -> Path:
+    """The folder of a data package (a wheel installs it unzipped, an editable install maps it to the checkout)."""
+    return Path(str(files(package)))
+
+
+MODELS_DIR = _package_folder("touchanything.models")
+SAMPLE_DIR = _package_folder("touchanything.sample")
+ATLAS_FILE = MODELS_DIR / "atlas" / "engine.json"
 """The committed atlas: every bundled model's settings on the held-out set (`touchanything bench`)."""
 OUTPUT_DIR = Path("recordings")
 """Where every command, and the dashboard's Record and Screenshot buttons, write when not told where:

@@ -35,7 +35,7 @@ def add_setting_arguments(parser: argparse.ArgumentParser) -> None:
                              "accurate one whose p99 latency fits, probed on this machine")
     parser.add_argument("--budget-ms", type=float, metavar="MS", help="with --setting auto: the per-frame latency budget")
     parser.add_argument("--atlas", type=Path, default=ATLAS_FILE,
-                        help="with --setting: the atlas (default: the committed docs/bench/engine.json)")
+                        help="with --setting: the atlas (default: the committed models/atlas/engine.json)")
 
 
 @dataclass(frozen=True)
