@@ -244,6 +244,8 @@ def test_the_logger_queue_is_bounded_and_counts_what_it_drops(tmp_path):
         sink.close()
         recording.close()
     assert sink.logged + sink.dropped == 200 and sink.error is None
+    assert sink.dropped_kinds == ({"observation": sink.dropped} if sink.dropped else {})  # named by kind in the summary
+    assert sink.line().endswith(f"behind ({sink.dropped} observations)" if sink.dropped else "behind")
     rows, _ = recording_rows(tmp_path / "q.rrd")
     assert len(rows["/cameras/ego"].data_frames("EncodedImage:blob")) == sink.logged
     assert rows["/world/hands"].data_frames("Points3D:positions") == []  # NaN joints: cleared, never logged

@@ -49,6 +49,7 @@ from touchanything.devices.view_sets import view_label
 from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
 from touchanything.viz.frame_facts import FrameFacts
 from touchanything.viz.pressure_panel import BACKGROUND, SPREAD_HIGH, unposed_as_nan
+from touchanything.viz.rerun_accounting import SERVER_MEMORY_LIMIT, CountingStream, ServedHistory
 from touchanything.viz.rerun_blueprint import MAP_ENTITIES, SHOWN_METRICS, SPREAD_ENTITY, default_blueprint
 from touchanything.viz.rerun_columns import ColumnBuffer
 from touchanything.viz.rerun_hands import HandSurfaces, hand_classes
@@ -74,13 +75,15 @@ class RerunTarget:
     """Where a recording goes: `rrd`, a file (written under a temporary name in its folder and renamed when the
     recording closes); `serve_port`, a web viewer on that HTTP port fed by a gRPC server on `serve_host`
     (127.0.0.1: this machine only) at `grpc_port` (0: a free one, read back; `viz.rerun_serving`). `image_scale`
-    scales camera frames logged as JPEG (the live rig's)."""
+    scales camera frames logged as JPEG (the live rig's). `server_memory_limit`: bytes the data server keeps at most
+    (beyond it, the oldest rows go: `viz.rerun_accounting`)."""
 
     rrd: Path | None = None
     serve_port: int | None = None
     grpc_port: int = 0
     image_scale: float = 1.0
     serve_host: str = LOCALHOST
+    server_memory_limit: int = SERVER_MEMORY_LIMIT
 
 
 def map_image(grids: np.ndarray, lut: np.ndarray, low: float, high: float = 1.0) -> np.ndarray:
@@ -112,20 +115,24 @@ class RerunRecording:
             self.served = ServedAt(target.serve_host, free_port(target.serve_host, target.grpc_port), target.serve_port)
         batching = rr.ChunkBatcherConfig(flush_tick=timedelta(seconds=FLUSH_SECONDS), flush_num_bytes=FLUSH_BYTES)
         self._stream = rr.RecordingStream(APPLICATION, send_properties=True, batcher_config=batching)
+        self.history = ServedHistory(target.server_memory_limit)
+        """What was sent, and what the data server may have dropped of it (`line()`)."""
+        self._log = CountingStream(self._stream, self.history)
         sinks = []
         if target.rrd is not None:
             target.rrd.parent.mkdir(parents=True, exist_ok=True)  # the output check creates nothing
             mark(temporary_path(target.rrd), "file")
             sinks.append(rr.FileSink(temporary_path(target.rrd)))
         if self.served is not None:
-            sinks.append(rr.GrpcServerSink(bind_ip=self.served.host, port=self.served.grpc_port, server_memory_limit="512MiB"))
+            limit = f"{target.server_memory_limit}B"
+            sinks.append(rr.GrpcServerSink(bind_ip=self.served.host, port=self.served.grpc_port, server_memory_limit=limit))
         self._stream.set_sinks(*sinks, default_blueprint=default_blueprint())
         if self.served is not None:
             rr.serve_web_viewer(web_port=self.served.web_port, open_browser=False, connect_to=self.served.data_url)
         self._stream.send_recording_name(name)
         if properties:
             self._stream.send_property("session", rr.AnyValues(**{k: str(v) for k, v in properties.items()}))
-        self._rows = ColumnBuffer(self._stream)
+        self._rows = ColumnBuffer(self._log)  # the stream's calls that log rows, counted
         self._videos: set[str] = set()
         self._image_size: dict[str, tuple[int, int]] = {}
         self._unused: dict[str, bool] = {}
@@ -141,13 +148,13 @@ class RerunRecording:
         return None if self.served is None else self.served.web_url
 
     def _log_static(self) -> None:
-        log = self._stream.log
+        log = self._log.log
         log("/", hand_classes(), static=True)
         log("world", rr.ViewCoordinates.RDF, static=True)
         log("trackers", rr.ViewCoordinates.RUB, static=True)
         for role in TRACKER_ROLES:
             log(f"trackers/{role}", rr.TransformAxes3D(0.1), static=True)
-        HandSurfaces.log_static(self._stream)
+        HandSurfaces.log_static(self._log)
         for kind, colours in (("measured", ((90, 200, 255), (60, 120, 255))), ("predicted", ((255, 170, 90), (255, 90, 60)))):
             log(f"contact/{kind}", rr.SeriesLines(colors=colours, names=[f"{hand} {kind}" for hand in HANDS]), static=True)
         log("metrics/rolling", rr.SeriesLines(names=[f"{name} (3 s)" for name in SHOWN_METRICS]), static=True)
@@ -170,10 +177,10 @@ class RerunRecording:
         value_type = rr.encodings.ChannelDatatype.from_np_dtype(np.dtype(VALUE_DTYPE))
         value_format = rr.components.ImageFormat(width=21, height=21, channel_datatype=value_type)
         for hand in HANDS:
-            self._stream.log(f"pressure/{kind}/{hand}", rr.DepthImage.from_fields(
+            self._log.log(f"pressure/{kind}/{hand}", rr.DepthImage.from_fields(
                 format=value_format, meter=1.0, depth_range=(0.0, high), colormap="turbo", magnification_filter="nearest",
                 draw_order=VALUE_DRAW_ORDER), static=True)
-        self._stream.log(f"pressure/{kind}/right", rr.Transform3D(translation=(VALUE_GAP, 0.0, 0.0)), static=True)
+        self._log.log(f"pressure/{kind}/right", rr.Transform3D(translation=(VALUE_GAP, 0.0, 0.0)), static=True)
 
     def log_videos(self, videos: Mapping[str, Path], frames: int, times_s: np.ndarray,
                    sizes: Mapping[str, tuple[int, int]]) -> set[str]:
@@ -188,11 +195,11 @@ class RerunRecording:
                 continue
             if len(stamps) < frames:
                 continue
-            self._stream.log(f"cameras/{view}", asset, static=True)
+            self._log.log(f"cameras/{view}", asset, static=True)
             indexes = [rr.TimeColumn("frame", sequence=np.arange(frames)),
                        rr.TimeColumn("capture_time", duration=np.asarray(times_s[:frames], np.float64))]
-            self._stream.send_columns(f"cameras/{view}", indexes=indexes,
-                                      columns=rr.VideoFrameReference.columns_nanos(stamps[:frames]))
+            self._log.send_columns(f"cameras/{view}", indexes=indexes,
+                                   columns=rr.VideoFrameReference.columns_nanos(stamps[:frames]))
             self._videos.add(view)
             self._image_size[view] = sizes[view]
         return set(self._videos)
@@ -254,7 +261,7 @@ class RerunRecording:
         entities and its view to the layout."""
         if spread is not None and not self._spread:
             self._spread = True
-            self._stream.log(f"pressure/{SPREAD_ENTITY}", rr.EncodedImage.from_fields(
+            self._log.log(f"pressure/{SPREAD_ENTITY}", rr.EncodedImage.from_fields(
                 media_type="image/png", magnification_filter="nearest", opacity=1.0, draw_order=MAP_DRAW_ORDER), static=True)
             self._log_value_images(SPREAD_ENTITY, SPREAD_HIGH)
             self._stream.send_blueprint(default_blueprint(spread=True))
@@ -320,13 +327,19 @@ class RerunRecording:
             else:
                 self._rows.put(f"pressure/{kind}/{hand}", rr.DepthImage, *at, buffer=[np.asarray(grids[h], VALUE_DTYPE).tobytes()])
 
+    def flush(self) -> None:
+        """Send every row held back and wait until the sinks have it: from then on the data server holds all that
+        was logged (a viewer connecting while a finished session is still served gets all of it)."""
+        if self._stream is not None:
+            self._rows.flush()
+            self._stream.flush()
+
     def close(self) -> None:
         """Flush, close the sinks (the file gets its footer) and rename the file into place; idempotent."""
         if self._stream is None:
             return
-        self._rows.flush()
+        self.flush()
         stream, self._stream = self._stream, None
-        stream.flush()
         stream.disconnect()
         if self.target.rrd is not None and temporary_path(self.target.rrd).exists():
             os.replace(temporary_path(self.target.rrd), self.target.rrd)

@@ -88,8 +88,12 @@ def open_recording(target: RerunTarget, name: str, properties: Mapping[str, str]
 
 
 def finish(recording: RerunRecording, keep_serving: bool = True) -> None:
-    """Close the recording (the file is renamed into place) and say where it is; with `keep_serving`, a served
-    recording stays up until Ctrl-C first (a headless run: the viewer can still look at it)."""
+    """Close the recording (the file is renamed into place) and say where it is; a served recording first sends
+    every row held back and says how many the data server holds and what it dropped (`ServedHistory.line`); with
+    `keep_serving`, it then stays up until Ctrl-C (a headless run: a viewer can still look at all of it)."""
+    if recording.url:
+        recording.flush()
+        print(recording.history.line(), flush=True)
     if recording.url and keep_serving:
         print(f"rerun     still serving at {recording.url}; Ctrl-C to stop", flush=True)
         try:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 import threading
 import time
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable
 
 import numpy as np
@@ -37,9 +37,11 @@ class RerunSink:
         self.time_of = time_of
         self.logged = 0
         self.dropped = 0
+        self.dropped_kinds: Counter[str] = Counter()
+        """{"observation" | "prediction": items dropped}."""
         self.busy_s = 0.0
         self.error: BaseException | None = None
-        self._queue: deque[Callable[[], None]] = deque()
+        self._queue: deque[tuple[str, Callable[[], None]]] = deque()
         self._wake = threading.Condition()
         self._running = True
         self._thread = threading.Thread(target=self._run, name="touchanything-rerun", daemon=True)
@@ -50,12 +52,12 @@ class RerunSink:
         """Items waiting for the logging thread (at most MAX_PENDING)."""
         return len(self._queue)
 
-    def _put(self, job: Callable[[], None]) -> None:
+    def _put(self, kind: str, job: Callable[[], None]) -> None:
         with self._wake:
             if len(self._queue) >= MAX_PENDING:
-                self._queue.popleft()
+                self.dropped_kinds[self._queue.popleft()[0]] += 1
                 self.dropped += 1
-            self._queue.append(job)
+            self._queue.append((kind, job))
             self._wake.notify()
 
     def observe(self, snapshot: Snapshot, truth: np.ndarray | None, threshold: float = CONTACT_THRESHOLD,
@@ -66,7 +68,7 @@ class RerunSink:
             facts = frame_facts(None, None, truth, self.bend, threshold)
             self.recording.log_observation(snapshot.frame_index, self.time_of(snapshot), snapshot.images, snapshot.joints,
                                            snapshot.joints_valid, truth, facts, snapshot.trackers, used)
-        self._put(job)
+        self._put("observation", job)
 
     def predicted(self, prediction: Prediction, snapshot: Snapshot, truth: np.ndarray | None, facts: FrameFacts) -> None:
         """The engine's prediction of `snapshot`'s frame, its measured pressure and the prediction's facts (the
@@ -75,7 +77,7 @@ class RerunSink:
             self.recording.log_prediction(prediction.frame_index, self.time_of(snapshot), prediction.pressure, facts,
                                           snapshot.joints, snapshot.joints_valid, truth, prediction.latency_ms,
                                           prediction.timings_ms.get("total"), prediction.spread)
-        self._put(job)
+        self._put("prediction", job)
 
     def _run(self) -> None:
         try:
@@ -89,7 +91,7 @@ class RerunSink:
                     self._wake.wait()
                 if not self._queue:
                     return
-                job = self._queue.popleft()
+                job = self._queue.popleft()[1]
             start = time.perf_counter()
             try:
                 job()
@@ -106,10 +108,13 @@ class RerunSink:
         self._thread.join()
 
     def line(self) -> str:
-        """"rerun     1180 items logged (3.1 ms each), 4 dropped while the logger was behind[; error: …]"."""
+        """"rerun     1180 items logged (3.1 ms each), 4 dropped while the logger was behind (3 observations,
+        1 predictions)[; error: …]" (no parenthesis when none was dropped)."""
         each = 1e3 * self.busy_s / max(self.logged, 1)
+        kinds = ", ".join(f"{n} {kind}s" for kind, n in sorted(self.dropped_kinds.items()))
         error = f"; error: {self.error}" if self.error is not None else ""
-        return f"rerun     {self.logged} items logged ({each:.1f} ms each), {self.dropped} dropped while the logger was behind{error}"
+        return (f"rerun     {self.logged} items logged ({each:.1f} ms each), {self.dropped} dropped while the logger was behind"
+                + (f" ({kinds})" if kinds else "") + error)
 
 
 def seconds_since_first() -> Callable[[Snapshot], float]:
