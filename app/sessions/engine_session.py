@@ -7,7 +7,13 @@ and every switch of the setting — model, tier, prediction rate, views — forg
 shown prediction (none until the engine predicts again; the shown frame's measurement stays), the running
 metrics and the plots' history; a setting switch also forgets the engine's step and stage times (they
 describe the setting). A new contact threshold restarts the metrics and their plot lines and decides the
-shown prediction's facts again (same model, same frame)."""
+shown prediction's facts again (same model, same frame).
+
+What the dashboard draws is one published record, the newest snapshot with the newest prediction, swapped in one
+step under the lock (`state` reads only it): a prediction publishes at once; a snapshot handed to the engine
+waits for a prediction (at most PREDICTION_WAIT_S, so that a slow engine never holds the cameras back), one that
+is not (no engine, skipped) publishes at once. So a 30 fps replay publishes about 30 records a second, not one for
+its frame and another for its prediction, and `wait_for_news` lets the display sleep until the next."""
 from __future__ import annotations
 
 import dataclasses
@@ -50,6 +56,11 @@ RECENT_FRAMES = 64
 STEP_WINDOW = 100
 """Engine step times kept for the live p99 the atlas panel places the running setting at."""
 MIN_STEPS = 10
+PredictionRecord = tuple[Prediction | None, np.ndarray | None, FrameFacts]
+"""A prediction (None: restarted figures), the measured pressure of its frame and their facts."""
+PREDICTION_WAIT_S = 0.025
+"""How long a snapshot handed to the engine waits for a prediction before it is published on its own (a frame
+period at 40 fps: the engine predicts a 30 fps replay's frame well within it when it keeps up)."""
 
 
 class EngineSession:
@@ -71,9 +82,16 @@ class EngineSession:
         """After a seek, the frame the source was moved to: a snapshot the source took before the seek (another
         frame, delivered late) is dropped until that frame comes, so that it never counts in the new metrics."""
         self._snapshot: Snapshot | None = None
-        self._prediction: tuple[Prediction | None, np.ndarray | None, FrameFacts] | None = None
-        """What the maps show: the newest prediction (None after a restart, until the engine predicts again), the
-        measured pressure of its frame and their facts."""
+        self._prediction: PredictionRecord | None = None
+        """The newest prediction (None after a restart, until the engine predicts again), the measured pressure of
+        its frame and their facts."""
+        self._published: tuple[Snapshot | None, PredictionRecord | None] = (None, None)
+        """What the dashboard shows: (snapshot, prediction record) as last published (see the module)."""
+        self._news = threading.Condition(self._lock)
+        self._news_count = 0
+        """Records published so far."""
+        self._held_until: float | None = None
+        """While a snapshot handed to the engine waits for a prediction: when it is published without one."""
         self._engine = engine
         """The engine whose predictions count: one still in flight from an engine switched away is dropped."""
         self._pose_only = engine is not None and engine.blank
@@ -133,6 +151,10 @@ class EngineSession:
             self._recent[snapshot.frame_index] = (snapshot, truth)
             while len(self._recent) > RECENT_FRAMES:
                 self._recent.pop(next(iter(self._recent)))
+            if self.live is not None and predict:
+                self._held_until = self._held_until or time.monotonic() + PREDICTION_WAIT_S
+            else:
+                self._publish()
         self.frames.tick()
         self._stages.add(snapshot.stage_ms)
         if self.rerun is not None:
@@ -164,6 +186,7 @@ class EngineSession:
                 for key in ("volumetric_iou", "contact_iou"):
                     self._history[key].append(np.nan if facts.rolling[key] is None else facts.rolling[key])
             self._prediction = (prediction, truth, facts)
+            self._publish()
             if self.rerun is not None:
                 self.rerun.predicted(prediction, snapshot, truth, facts)
 
@@ -199,15 +222,43 @@ class EngineSession:
                 self._steps.clear()
                 self._stages = StageMeans()
                 self._predictions.reset()
+            self._publish()
         if self.live is not None:
             self.live.call(lambda: self.live.engine.reset())
 
+    def _publish(self) -> None:
+        """Make the newest snapshot and prediction the shown record, in one step (the lock is held)."""
+        self._published = (self._snapshot, self._prediction)
+        self._held_until = None
+        self._news_count += 1
+        self._news.notify_all()
+
+    def _publish_overdue(self) -> None:
+        """Publish a snapshot that waited PREDICTION_WAIT_S for a prediction without one (the lock is held)."""
+        if self._held_until is not None and time.monotonic() >= self._held_until:
+            self._publish()
+
+    def wait_for_news(self, seen: int, timeout: float) -> int:
+        """Block until more than `seen` records were published (`SessionState.news`), or `timeout` s passed;
+        the number published now."""
+        deadline = time.monotonic() + timeout
+        with self._news:
+            while self._news_count == seen:
+                self._publish_overdue()
+                now = time.monotonic()
+                if self._news_count != seen or now >= deadline:
+                    break
+                self._news.wait(min(deadline, self._held_until or deadline) - now)
+            return self._news_count
+
     def state(self) -> SessionState:
-        """The session now. Paused, nothing runs: the engine's rate reads 0 and its row says "paused" (not the
-        rate it had)."""
+        """The session now, its snapshot and prediction the published record. Paused, nothing runs: the engine's
+        rate reads 0 and its row says "paused" (not the rate it had)."""
         with self._lock:
-            prediction, truth, facts = self._prediction or (None, None, None)
-            snapshot, playback = self._snapshot, self.playback()
+            self._publish_overdue()
+            snapshot, record = self._published
+            prediction, truth, facts = record or (None, None, None)
+            playback = self.playback()
             paused = playback is not None and playback.paused
             rows = self.source_rows(snapshot)
             if self.live is not None:
@@ -225,7 +276,7 @@ class EngineSession:
                 recording=self.recording_status(), setting=self._setting_name(),
                 step_p99_ms=self._step_p99(),
                 atlas=self.atlas, atlas_note=self.atlas_note,
-                members=self.choice.setting.members if self.live is not None else 1)
+                members=self.choice.setting.members if self.live is not None else 1, news=self._news_count)
 
     def _step_p99(self) -> float | None:
         """p99 of the engine's recent step times (None: too few yet); an overrun of the budget is said once."""
@@ -277,6 +328,7 @@ class EngineSession:
             if self._prediction is not None:
                 prediction, truth, _ = self._prediction
                 self._prediction = (prediction, truth, self._facts(prediction, truth))
+            self._publish()
 
     def models(self) -> tuple[str, ...]:
         names = tuple(bundled_models())

@@ -1,14 +1,18 @@
 """The dearpygui dashboard: cameras with hand overlays, measured / predicted (or an ensemble's spread) / error
 pressure maps, contact lamps, running metrics, latency per stage, device status, and the session's controls.
 
-The render loop runs on the calling thread and never waits for devices or the engine: it polls the
-session's latest state at the display rate and rebuilds an image only when its content changed (cameras
-on a new snapshot, maps on a new prediction; plots are refreshed at most 5 and tables 10 times a second).
-A frame is rendered only when something on screen changed or the user is acting (for INPUT_HOLD_S after
-any mouse or key event or control callback), at most MAX_FPS times a second; otherwise only every
-IDLE_PERIOD_S, which is when dearpygui looks at the mouse and keyboard. So a paused replay leaves the CPU
-to the engine and to other programs (docs/bench/dashboard.md measures it). Callbacks run on the same
-thread (manual callback management), between frames.
+The render loop runs on the calling thread and never waits for devices or the engine: between frames it
+sleeps until the session publishes a new record (`wait_for_news`: a snapshot with its prediction, about 30 a
+second for a 30 fps replay) or the next frame is due. Every panel of a drawn frame comes from one `ShownFrame`
+(the session's published snapshot and prediction, the prediction's truth and facts, the views and the display
+settings), replaced in one step: the cameras are redrawn on a new snapshot, the head camera's pressure discs,
+the maps, titles, lamps, metrics table and legends on a new prediction, together. A frame is rendered when that
+record changed, or the user is acting (for INPUT_HOLD_S after any mouse or key event or control callback), at
+most MAX_FPS times a second; otherwise only every IDLE_PERIOD_S, which is when dearpygui looks at the mouse and
+keyboard. The plots' lines (at most 5 times a second), the text tables (10) and the atlas are refreshed on their
+own clocks and go on screen with the next frame: they never add one. So the display draws at the content's rate
+and leaves the CPU to the engine and to other programs (docs/bench/dashboard.md measures it). Callbacks run on
+the same thread (manual callback management), between frames.
 """
 from __future__ import annotations
 
@@ -25,13 +29,15 @@ import numpy as np
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import replacing
 from touchanything.devices.rate_meter import RateMeter
-from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.inference.engine.prediction import Prediction
 from touchanything.viz.dashboard.atlas_panel import AtlasPanel
 from touchanything.viz.dashboard.dashboard_controls import Tables, build_controls, build_tables
 from touchanything.viz.dashboard.dashboard_drawn import ContactLamps, HistoryPlots
 from touchanything.viz.dashboard.dashboard_panels import blank, camera_panel, pressure_views
 from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState
 from touchanything.viz.display import display_problem
+from touchanything.viz.frame_facts import FrameFacts
 from touchanything.viz.pressure_panel import HAND_LABELS, MAP_GAP, MAP_TITLES, maps_width, unposed_as_nan
 from touchanything.viz.textures import TextureSlot
 
@@ -51,7 +57,7 @@ under software OpenGL a blended full-screen quad costs about half of an otherwis
 REFRESH_PERIODS_S = {"plots": 0.2, "tables": 0.1, "atlas": 0.5}
 """The plots and the text tables are refreshed at most this often (every frame would only cost CPU)."""
 MAX_FPS = 60
-"""Frames are rendered at most this often (about a display's refresh rate; content changes at 30 Hz)."""
+"""Frames are rendered at most this often (about a display's refresh rate, for input; content changes at 30 Hz)."""
 IDLE_PERIOD_S = 0.2
 """With nothing changing, a frame is still rendered this often: dearpygui reads input only while rendering."""
 INPUT_HOLD_S = 1.0
@@ -76,6 +82,32 @@ class DashboardConfig:
     height: int = 720
     title: str = "TouchAnything Live"
     screenshot_dir: Path = Path("recordings") / "screenshots"
+
+
+@dataclass(frozen=True)
+class ShownFrame:
+    """What every panel of a drawn frame comes from: the session's published snapshot and prediction (with the
+    prediction's truth and facts), the views the model uses, the running engine's ensemble members and the
+    display settings the maps are drawn with (contact threshold, outline, spread). The dashboard replaces it in
+    one step."""
+
+    snapshot: Snapshot | None = None
+    prediction: Prediction | None = None
+    truth: np.ndarray | None = None
+    facts: FrameFacts | None = None
+    views_used: tuple[str, ...] = ()
+    members: int = 1
+    settings: tuple[float, bool, bool] = (0.0, False, False)
+
+    def new_cameras(self, shown: ShownFrame) -> bool:
+        """The camera images differ from `shown`'s: another snapshot or other views used."""
+        return self.snapshot is not shown.snapshot or self.views_used != shown.views_used
+
+    def new_maps(self, shown: ShownFrame) -> bool:
+        """What the prediction decides (maps, titles, lamps, metrics, legends, the head camera's discs) differs
+        from `shown`'s: another prediction, truth or facts, or other settings."""
+        return (self.prediction is not shown.prediction or self.truth is not shown.truth
+                or self.facts is not shown.facts or (self.members, self.settings) != (shown.members, shown.settings))
 
 
 @dataclass
@@ -111,10 +143,16 @@ class Dashboard:
         self._closing = False
         self.panel_rects: dict[str, tuple[int, int, int, int]] = {}
         """Where each image panel is on screen: name → (x, y, width, height) in viewport pixels."""
-        self._shown: dict[str, object] = {}
+        self._frame = ShownFrame()
+        """What the panels show (`_update`)."""
+        self._refreshed: dict[str, object] = {}
+        """What the plots' lines, the atlas and the spread toggle show (`_changed`)."""
         self._due = dict.fromkeys(REFRESH_PERIODS_S, 0.0)
         self._tables = Tables()
         self._input_until = 0.0
+        self._last_frame = 0.0
+        self._frame_due = True
+        """The shown record changed since the last rendered frame."""
 
     def run(self, max_frames: int | None = None, screenshot: Path | None = None) -> DashboardStats:
         """Render until the window closes or `max_frames` frames; with `screenshot`, the content stops
@@ -212,23 +250,22 @@ class Dashboard:
         return True
 
     def _loop(self, max_frames: int | None, screenshot: Path | None) -> None:
-        start = last_frame = time.perf_counter()
-        changed = True
+        start = time.perf_counter()
+        news = -1
         while dpg.is_dearpygui_running() and not self._closing:
             callbacks = dpg.get_callback_queue()
             if callbacks:
                 self._input_until = time.perf_counter() + INPUT_HOLD_S
                 dpg.run_callbacks(callbacks)
-            finishing = max_frames is not None and self.stats.frames >= max_frames
-            if not finishing:
-                changed |= self._update(self.session.state())
-            now = time.perf_counter()
-            if not (changed or now < self._input_until or self.pending_screenshot or now >= last_frame + IDLE_PERIOD_S
-                    or not self.panel_rects):
-                time.sleep(1 / MAX_FPS)
+            if max_frames is None or self.stats.frames < max_frames:
+                state = self.session.state()
+                news = state.news
+                self._frame_due |= self._update(state)
+            wait = self._until_frame(time.perf_counter())
+            if wait > 0:
+                news = self.session.wait_for_news(news, wait)
                 continue
-            time.sleep(max(0.0, last_frame + 1 / MAX_FPS - now))
-            last_frame, changed = time.perf_counter(), False
+            self._last_frame, self._frame_due = time.perf_counter(), False
             dpg.render_dearpygui_frame()
             if not self.panel_rects:
                 self._find_panels()
@@ -244,14 +281,21 @@ class Dashboard:
                     # with this extra frame)
                     self.request_screenshot(screenshot)
 
+    def _until_frame(self, now: float) -> float:
+        """Seconds until the next frame is due (≤ 0: render now): 1 / MAX_FPS after the last one for a new record,
+        a screenshot, the first layout and while the user acts; otherwise IDLE_PERIOD_S after it."""
+        urgent = self._frame_due or self.pending_screenshot or not self.panel_rects or now < self._input_until
+        return self._last_frame + (1 / MAX_FPS if urgent else IDLE_PERIOD_S) - now
+
     def close(self) -> None:
-        """Ask the render loop to end after the current frame (callable from any thread)."""
+        """Ask the render loop to end (callable from any thread; within IDLE_PERIOD_S)."""
         self._closing = True
 
     @property
     def shown(self) -> dict[str, object]:
-        """What is on screen now: the snapshot and prediction records last uploaded."""
-        return dict(self._shown)
+        """What is on screen now: the snapshot, the prediction and the views used of the shown record."""
+        frame = self._frame
+        return {"snapshot": frame.snapshot, "prediction": frame.prediction, "views": frame.views_used}
 
     def _find_panels(self) -> None:
         """Record the panels' screen rectangles once dearpygui has laid them out."""
@@ -264,55 +308,66 @@ class Dashboard:
             self.panel_rects = rects
 
     def _changed(self, key: str, value: object) -> bool:
-        """Whether `value` differs from what is on screen under `key` (identity for records, equality for
-        settings tuples), remembering it."""
-        shown = self._shown.get(key, ...)
-        if shown is value or (isinstance(value, tuple) and shown == value):
+        """Whether `value` differs from what is on screen under `key` (identity, or equality for tuples and
+        flags), remembering it."""
+        shown = self._refreshed.get(key, ...)
+        if shown is value or (isinstance(value, (tuple, bool)) and shown == value):
             return False
-        self._shown[key] = value
+        self._refreshed[key] = value
         return True
 
     def _update(self, state: SessionState) -> bool:
-        """Bring what is shown up to `state`; True when anything on screen changed."""
-        now_us = time.monotonic_ns() / 1000
-        prediction, facts = state.prediction, state.facts
-        new_prediction = self._changed("prediction", prediction)
-        new_snapshot = self._changed("snapshot", state.snapshot) | self._changed("views", state.views_used)
-        if new_snapshot or (new_prediction and prediction is None):  # restarted figures: the old discs go too
-            shown = None if prediction is None or facts is None else prediction.pressure
-            pressure = None if shown is None else unposed_as_nan(shown, facts.posed)  # the skeleton's discs, as the map
-            for view in VIEW_NAMES if new_snapshot else ("ego",):
-                self.cameras[view].show(camera_panel(state.snapshot, view, view in state.views_used, *CAMERA_TEXTURE,
-                                                     pressure))
-            if new_snapshot and state.snapshot is not None:
-                self.stats.camera_lag_ms.append((now_us - state.snapshot.t_us) / 1e3)
+        """Bring what is shown up to `state`; True when the shown record (or the spread toggle) changed: a frame is
+        due. Everything the record decides is drawn from it together; the plots' lines, the atlas and the tables
+        are refreshed on their own clocks and go on screen with the next frame."""
+        frame = ShownFrame(state.snapshot, state.prediction, state.truth, state.facts, state.views_used, state.members,
+                           (self.session.threshold, self.outline, self.spread))
+        new_cameras, new_maps = frame.new_cameras(self._frame), frame.new_maps(self._frame)
+        if new_cameras or new_maps:
+            self._draw(frame, new_cameras, new_maps)
+        self._frame = frame
         new_toggle = self._show_spread_toggle(state.members)
-        settings = (self.session.threshold, self.outline, state.truth is None, self.spread, state.members > 1)
-        new_maps = new_prediction | self._changed("facts", facts) | self._changed("settings", settings)
-        if new_maps:  # everything the prediction's facts decide, together: the panels never disagree
-            views = pressure_views(state, CELL, self.session.threshold, self.outline, self.spread)
-            for name, (image, title) in views.items():
-                self.maps[name].show(blank(*MAPS, "n/a") if image is None else image)
-                dpg.set_value(f"title_{name}", title)
-            self.lamps.update(facts)
-            self.plots.show_values(None if facts is None else facts.rolling, None if prediction is None else prediction.latency_ms)
-            self._tables.show_metrics(facts)
-        if new_prediction and prediction is not None:
+        self._refresh(state)
+        return new_cameras or new_maps or new_toggle
+
+    def _draw(self, frame: ShownFrame, new_cameras: bool, new_maps: bool) -> None:
+        """Draw `frame`: the cameras and the pose line (`new_cameras`), the head camera's discs, the maps, their
+        titles, the lamps, the legends and the metrics table (`new_maps`)."""
+        now_us = time.monotonic_ns() / 1000
+        prediction, facts = frame.prediction, frame.facts
+        shown = None if prediction is None or facts is None else prediction.pressure
+        pressure = None if shown is None else unposed_as_nan(shown, facts.posed)  # the skeleton's discs, as the map
+        for view in VIEW_NAMES if new_cameras else ("ego",):
+            self.cameras[view].show(camera_panel(frame.snapshot, view, view in frame.views_used, *CAMERA_TEXTURE,
+                                                 pressure))
+        if new_cameras:
+            self._tables.show_pose(frame.snapshot)
+            if frame.snapshot is not None and frame.snapshot is not self._frame.snapshot:
+                self.stats.camera_lag_ms.append((now_us - frame.snapshot.t_us) / 1e3)
+        if not new_maps:
+            return
+        state = SessionState(snapshot=frame.snapshot, prediction=prediction, truth=frame.truth, facts=facts,
+                             members=frame.members)
+        for name, (image, title) in pressure_views(state, CELL, *frame.settings).items():
+            self.maps[name].show(blank(*MAPS, "n/a") if image is None else image)
+            dpg.set_value(f"title_{name}", title)
+        self.lamps.update(facts)
+        self.plots.show_values(None if facts is None else facts.rolling, None if prediction is None else prediction.latency_ms)
+        self._tables.show_metrics(facts)
+        if prediction is not None and prediction is not self._frame.prediction:
             self.stats.prediction_lag_ms.append((now_us - prediction.t_us) / 1e3)
-        changed = new_snapshot | new_maps | new_toggle
+
+    def _refresh(self, state: SessionState) -> None:
+        """The plots' lines, the atlas and the tables, each when due and changed."""
         if self._refresh_due("plots") and self._changed("history", tuple(v.tobytes() for v in state.history.values())):
             self.plots.update(state.history)
-            changed = True
         if self._changed("atlas", state.atlas):
             self.atlas.show_atlas(state.atlas, state.atlas_note)
-            changed = True
         running = (state.setting, None if state.step_p99_ms is None else round(state.step_p99_ms, 1))
         if self._refresh_due("atlas") and self._changed("running", running):
             self.atlas.update(*running)
-            changed = True
         if self._refresh_due("tables"):
-            changed |= self._tables.update(state, self.note, self.stats.rate.rate())
-        return changed
+            self._tables.update(state, self.note, self.stats.rate.rate())
 
     def _refresh_due(self, name: str) -> bool:
         """Whether `name` is due for a refresh (then the next one is scheduled)."""

@@ -10,7 +10,7 @@ import numpy as np
 
 from touchanything.devices.camera_pose.estimator import STAGE as POSE_STAGE
 from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.devices.view_sets import VIEW_LABELS
 from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState, SourceStatus
 from touchanything.viz.frame_facts import FrameFacts, metric_text
@@ -149,7 +149,7 @@ def build_tables(char_width: float) -> None:
 
 class Tables:
     """The texts and tables, refreshed from each SessionState; an item is touched only when its content
-    changes, so `update` tells whether anything on screen did."""
+    changes."""
 
     def __init__(self) -> None:
         self._shown: dict[tuple[str, str], object] = {}
@@ -184,10 +184,13 @@ class Tables:
             for column, values in (("rolling", facts and facts.rolling), ("cumulative", facts and facts.cumulative)):
                 self._put(f"{column}_{key}", "value", metric_text(None if values is None else values[key]))
 
-    def update(self, state: SessionState, note: str, display_fps: float) -> bool:
-        """Refresh from `state`; `note`: the dashboard's own notice (`message`). True when anything shown
-        changed."""
-        texts = {("model_text", "value"): f"model: {state.model}", ("pose_text", "value"): pose_label(state.snapshot),
+    def show_pose(self, snapshot: Snapshot | None) -> None:
+        """The pose line of the shown snapshot (with its camera images, never on the tables' clock)."""
+        self._put("pose_text", "value", pose_label(snapshot))
+
+    def update(self, state: SessionState, note: str, display_fps: float) -> None:
+        """Refresh from `state`; `note`: the dashboard's own notice (`message`)."""
+        texts = {("model_text", "value"): f"model: {state.model}",
                  ("message_text", "value"): self.message(note, state.message),
                  ("record_button", "label"): "Stop recording" if state.recording else "Record",
                  ("recording_text", "value"): state.recording or "", ("recording_text", "show"): bool(state.recording),
@@ -212,8 +215,8 @@ class Tables:
                     texts[(f"device_{row}_{column}", "value")] = text
                 texts[(f"device_{row}_full", "value")] = rows[row].detail or \
                     ("no details" if rows[row].in_scene else "the scene has no such source")
-        changed = [self._put(tag, key, value) for (tag, key), value in texts.items()]
-        return any(changed)
+        for (tag, key), value in texts.items():
+            self._put(tag, key, value)
 
 
 def _shown_frame(state: SessionState) -> int:

@@ -43,8 +43,9 @@ class Playback:
 class SessionState:
     """One consistent picture, published by the session and read by the render loop.
 
-    snapshot: the newest camera frame; prediction: the newest prediction (None before the first, and after the
-    figures restarted — a seek, a switch — until the engine predicts again) and truth: the (2, 21, 21)
+    snapshot: the camera frame and prediction: the prediction the session last published together (one record,
+    swapped in one step: every panel draws from it); the prediction is None before the first, and after the
+    figures restarted — a seek, a switch — until the engine predicts again; truth: the (2, 21, 21)
     measured pressure of the prediction's frame (without a prediction: of the frame shown when the figures
     restarted; None without a glove / ground truth); facts: the prediction's `FrameFacts` (posed and measured
     hands, contact lamps, the official metrics as they stood after it: what every panel shows of it);
@@ -56,7 +57,8 @@ class SessionState:
     running engine setting's name (`nano/onnx-int8/all`); step_p99_ms: p99 of the engine's per-frame step time
     over its recent predictions (None before enough of them); atlas: the speed/accuracy atlas's settings of the
     models here (empty, with `atlas_note` saying why, when there is none); members: the running engine's
-    ensemble members (1 for a single model and without a model: its predictions have no spread)."""
+    ensemble members (1 for a single model and without a model: its predictions have no spread); news: how many
+    records (snapshot with prediction) the session has published, this one included (`wait_for_news`)."""
 
     snapshot: Snapshot | None = None
     prediction: Prediction | None = None
@@ -77,6 +79,7 @@ class SessionState:
     atlas: tuple[AtlasRow, ...] = ()
     atlas_note: str = ""
     members: int = 1
+    news: int = 0
 
     @property
     def rolling(self) -> dict[str, float] | None:
@@ -100,6 +103,9 @@ class DashboardSession(Protocol):
     threshold: float
 
     def state(self) -> SessionState: ...
+
+    def wait_for_news(self, seen: int, timeout: float) -> int:
+        """Block until more than `seen` records are published or `timeout` s passed; how many are now."""
 
     def play(self) -> None: ...
 
