@@ -1,5 +1,6 @@
-"""The command line says what README's command table says: the same commands, positionals and options both
-ways; every option has help text that states its default; bare `touchanything` lists the commands."""
+"""The command line says what docs/commands.md's command table says: the same commands, positionals and options
+both ways; README's short table names the same commands; every option has help text that states its default; bare
+`touchanything` lists the commands."""
 from __future__ import annotations
 
 import argparse
@@ -14,7 +15,9 @@ from touchanything.app.commands.replay_command import given_choice
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.view_sets import parse_view_set, view_set_name
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+COMMANDS_DOC = ROOT / "docs" / "commands.md"
 
 
 def subcommands() -> dict[str, argparse.ArgumentParser]:
@@ -22,10 +25,10 @@ def subcommands() -> dict[str, argparse.ArgumentParser]:
     return dict(action.choices)
 
 
-def readme_rows() -> dict[str, str]:
-    """command → the usage cell of its row in README's command table."""
+def table_rows(doc: Path) -> dict[str, str]:
+    """command → the usage cell of its row in the doc's command table (README's short table: no options)."""
     rows = {}
-    for line in README.read_text().splitlines():
+    for line in doc.read_text().splitlines():
         if match := re.match(r"\| `touchanything ([a-z-]+)(.*?)` \|", line):
             rows[match[1]] = match[2]
     return rows
@@ -39,16 +42,17 @@ def positionals(parser: argparse.ArgumentParser) -> list[str]:
     return [a.metavar or a.dest.upper() for a in parser._actions if not a.option_strings]
 
 
-def test_readme_table_has_every_command_and_only_those():
-    assert set(readme_rows()) == set(subcommands())
+@pytest.mark.parametrize("doc", [COMMANDS_DOC, README], ids=["docs/commands.md", "README.md"])
+def test_the_command_tables_have_every_command_and_only_those(doc):
+    assert set(table_rows(doc)) == set(subcommands())
 
 
 @pytest.mark.parametrize("command", sorted(subcommands()))
-def test_readme_row_names_the_same_options_and_positionals_as_help(command):
-    cell, parser = readme_rows()[command], subcommands()[command]
+def test_the_full_row_names_the_same_options_and_positionals_as_help(command):
+    cell, parser = table_rows(COMMANDS_DOC)[command], subcommands()[command]
     assert set(re.findall(r"--[a-z0-9][a-z0-9-]*", cell)) == options(parser)
     for name in positionals(parser):
-        assert re.search(rf"\b{re.escape(name)}\b", cell), f"{command}: positional {name} not in README's row"
+        assert re.search(rf"\b{re.escape(name)}\b", cell), f"{command}: positional {name} not in docs/commands.md's row"
 
 
 @pytest.mark.parametrize("command", sorted(subcommands()))

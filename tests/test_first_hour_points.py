@@ -37,6 +37,6 @@ def test_the_pose_only_baseline_is_the_bundled_twin_when_there_is_one(tmp_path):
 def test_bench_figures_never_read_minus_zero():
     assert _signed([-0.0001, -0.0004, 0.0002]) == "+0.000 [+0.000, +0.000]"
     assert _signed([-0.0012, -0.0031, 0.0004]) == "-0.001 [-0.003, +0.000]"
-    committed = (ROOT / "docs" / "bench" / "engine.md").read_text()
+    committed = (ROOT / "models" / "atlas" / "engine.md").read_text()
     assert "-0.000" not in committed
-    assert "-0.000" not in markdown(json.loads((ROOT / "docs" / "bench" / "engine.json").read_text()))
+    assert "-0.000" not in markdown(json.loads((ROOT / "models" / "atlas" / "engine.json").read_text()))
