@@ -159,7 +159,7 @@ def test_replay_of_a_plain_video_headless(hand_video, tmp_path, capsys):
     assert counts[0] >= FRAMES - EMPTY - 2 and counts[1] >= FRAMES - EMPTY - 2, line
     assert " ms per frame (p99 " in line
     model_line = next(line for line in printed.splitlines() if line.startswith("model     "))
-    assert "— trained on simulated data; held-out V-IoU " in model_line, model_line
+    assert "— trained on simulated data (torch-fp32 on cpu), " in model_line and "; held-out V-IoU " in model_line, model_line
     assert "note      illustrative only: bare-hand poses from the camera" in printed
     with VideoReader(out) as video:
         assert video.num_frames == FRAMES and video.read(FRAMES - 1).shape == (806, 1440, 3)
@@ -176,7 +176,7 @@ def test_the_dashboard_says_a_camera_pose_prediction_is_illustrative(hand_video)
             model = session.state().model
         finally:
             session.close()
-    assert model.startswith("nano — trained on simulated data") and model.endswith(
+    assert model.startswith("pico — trained on simulated data") and model.endswith(
         " — illustrative only: bare-hand poses from the camera, model trained on simulated gloved hands"), model
 
 

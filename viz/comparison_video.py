@@ -18,6 +18,7 @@ from touchanything.viz.pressure_panel import (
     SPREAD_HIGH,
     SPREAD_TITLE,
     dimmed,
+    layout_bend,
     pressure_panel,
     put_text,
 )
@@ -65,18 +66,21 @@ def comparison_frame(images: dict[str, np.ndarray], gt: np.ndarray | None, pred:
 
 
 def _draw_panels(frame: np.ndarray, gt: np.ndarray | None, pred: np.ndarray | None, spread: np.ndarray | None) -> None:
-    """The map panels side by side under the cameras: measured | predicted [| spread] | difference."""
-    panels = [(gt, MAP_TITLES["measured"], False, "no glove", 1.0), (pred, MAP_TITLES["predicted"], False, "no pose", 1.0)]
-    panels += [(spread, SPREAD_TITLE, False, "no pose", SPREAD_HIGH)] if spread is not None else []
-    panels += [(None if gt is None or pred is None else pred - gt, MAP_TITLES["error"], True, "n/a", 1.0)]
+    """The map panels side by side under the cameras: measured | predicted [| spread] | difference, the bend
+    cells of the pressure and difference panels drawn as such (`pressure_panel`)."""
+    bend = layout_bend()
+    panels = [(gt, MAP_TITLES["measured"], False, "no glove", 1.0, bend),
+              (pred, MAP_TITLES["predicted"], False, "no pose", 1.0, bend)]
+    panels += [(spread, SPREAD_TITLE, False, "no pose", SPREAD_HIGH, None)] if spread is not None else []
+    panels += [(None if gt is None or pred is None else pred - gt, MAP_TITLES["error"], True, "n/a", 1.0, bend)]
     width = WIDTH // len(panels)
-    for k, (grids, title, error, empty, high) in enumerate(panels):
+    for k, (grids, title, error, empty, high, hatched) in enumerate(panels):
         x = k * width
         if grids is None:
             put_text(frame, f"{title}: n/a", (x + 10, CAMERA_HEIGHT + 30), 0.6)
             continue
         frame[CAMERA_HEIGHT:CAMERA_HEIGHT + PANEL_HEIGHT, x:x + width] = pressure_panel(
-            grids, title, width, PANEL_HEIGHT, error=error, empty=empty, high=high)
+            grids, title, width, PANEL_HEIGHT, error=error, empty=empty, high=high, bend=hatched)
 
 
 def write_comparison_video(path: Path, frames) -> int:

@@ -124,12 +124,18 @@ def tiers_for(device: torch.device) -> tuple[str, ...]:
 
 
 def model_name(choice: ModelChoice) -> str:
-    """What the model is: its card's summary (name, training data, held-out V-IoU; `model_card`), else the
-    bundled model's folder name, else the checkpoint's path."""
+    """What the model is: its card's name and training data ("pico — trained on simulated data"; its accuracy is
+    said once, by `setting_choice.running_accuracy`), else the bundled model's folder name, else the checkpoint's
+    path."""
     if card := read_card(choice.checkpoint):
-        return card.summary()
+        return replace(card, held_out={}).summary()
     bundled = {path.resolve(): name for name, path in bundled_models().items()}
     return bundled.get(choice.checkpoint.resolve(), str(choice.checkpoint))
+
+
+def is_bundled(checkpoint: Path) -> bool:
+    """Whether `checkpoint` is a bundled model's (the atlas measured those weights only)."""
+    return Path(checkpoint).resolve() in {path.resolve() for path in bundled_models().values()}
 
 
 def model_key(checkpoint: Path) -> str:
@@ -140,8 +146,7 @@ def model_key(checkpoint: Path) -> str:
 
 def model_label(choice: ModelChoice, engine: StreamingEngine | None = None) -> str:
     """The model's name with the tier, the export folder it runs, and for a built engine the device it runs on
-    ("nano — trained on simulated data; held-out V-IoU 0.55 seen / 0.53 unseen objects (onnx int8 from
-    exports/nano on cpu)")."""
+    ("nano — trained on simulated data (onnx-int8 from exports/nano on cpu)")."""
     export = f" from {choice.onnx_dir}" if choice.runs_export else ""
     where = f" on {device_label(engine.runtime.device)}" if engine is not None else ""
     return f"{model_name(choice)} ({choice.setting.tier}{export}{where})"

@@ -36,12 +36,13 @@ from touchanything.app.sessions.engine_choice import (
     tiers_for,
 )
 from touchanything.app.sessions.rerun_sink import RerunSink
-from touchanything.app.sessions.setting_choice import display_atlas
+from touchanything.app.sessions.setting_choice import display_atlas, running_accuracy
 from touchanything.devices.errors import UserError
 from touchanything.devices.rate_meter import RateMeter, StageMeans
 from touchanything.devices.snapshot import POSE_FROM_CAMERA, VIEW_NAMES, Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.view_sets import views_used
+from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.live_engine import LiveEngine
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.engine.streaming_engine import StreamingEngine
@@ -50,6 +51,7 @@ from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.dashboard.dashboard_state import Playback, SessionState, SourceStatus
 from touchanything.viz.frame_facts import FrameFacts, frame_facts
 from touchanything.viz.line_plot import PLOT_SAMPLES
+from touchanything.viz.model_accuracy import ModelAccuracy
 
 RECENT_FRAMES = 64
 """Snapshots kept to pair late predictions with their frame's measured pressure."""
@@ -105,6 +107,8 @@ class EngineSession:
         """The budget the running setting was chosen for (`--setting auto`); an overrun becomes the message, once."""
         self._loading = False
         self._model = model_label(choice, engine) if engine is not None else "no model"
+        self._accuracy: tuple[tuple, ModelAccuracy] = ((), ModelAccuracy())
+        """The running setting's accuracy and what it was worked out for (`_running_accuracy`)."""
         self._camera_note = illustrative_note(choice, camera_pose=True)
         self.live = LiveEngine(engine, on_prediction=self._on_prediction) if engine is not None else None
         self.rerun: RerunSink | None = None
@@ -173,11 +177,8 @@ class EngineSession:
             if prediction.frame_index not in self._recent or self.live.engine is not self._engine:
                 return
             snapshot, truth = self._recent[prediction.frame_index]
-            self._predictions.tick()
-            self._stages.add(prediction.timings_ms)
-            if "total" in prediction.timings_ms:
-                self._steps.append(prediction.timings_ms["total"])
-            self._history["latency_ms"].append(prediction.latency_ms)
+            if prediction.pressure is not None:
+                self._time(prediction)
             if truth is not None and prediction.pressure is not None:
                 self._truth_seen = True
                 self.metrics.add(prediction.pressure, truth)
@@ -189,6 +190,15 @@ class EngineSession:
             self._publish()
             if self.rerun is not None:
                 self.rerun.predicted(prediction, snapshot, truth, facts)
+
+    def _time(self, prediction: Prediction) -> None:
+        """Count a prediction with pressure in the engine's rate, stage times, step times and latency (one without
+        pressure — no head camera — predicted nothing: it is timed nowhere; the lock is held)."""
+        self._predictions.tick()
+        self._stages.add(prediction.timings_ms)
+        if "total" in prediction.timings_ms:
+            self._steps.append(prediction.timings_ms["total"])
+        self._history["latency_ms"].append(prediction.latency_ms)
 
     def _facts(self, prediction: Prediction | None, truth: np.ndarray | None) -> FrameFacts:
         """The facts of `prediction` (None: of its frame's measurement alone) at the session's threshold, with the
@@ -261,6 +271,7 @@ class EngineSession:
             playback = self.playback()
             paused = playback is not None and playback.paused
             rows = self.source_rows(snapshot)
+            accuracy = self._running_accuracy() if self.live is not None else ModelAccuracy(caption="")
             if self.live is not None:
                 stats = self.live.stats
                 detail = "loading a model…" if self._loading else f"{stats.processed} processed, {self.live.engine.runtime.capture}"
@@ -272,9 +283,9 @@ class EngineSession:
                 views_used=self._views_used(),
                 history={name: np.array(values, np.float64) for name, values in self._history.items()},
                 stage_ms=self._stages.means(), engine_fps=0.0 if paused else self._predictions.rate(), sources=tuple(rows),
-                playback=playback, model=self._model_line(snapshot), message=self.message,
-                recording=self.recording_status(), setting=self._setting_name(),
-                step_p99_ms=self._step_p99(),
+                playback=playback, model=self._model_line(snapshot, accuracy.line), accuracy=accuracy,
+                message=self.message, recording=self.recording_status(), setting=self._setting_name(),
+                step_p99_ms=self._step_p99(), steps_timed=len(self._steps),
                 atlas=self.atlas, atlas_note=self.atlas_note,
                 members=self.choice.setting.members if self.live is not None else 1, news=self._news_count)
 
@@ -290,16 +301,31 @@ class EngineSession:
         then nothing is predicted)."""
         if self.live is None or "ego" not in self.views:
             return ""
-        return self.choice.with_setting(views=self.views).setting.name()
+        return self._running_setting().name()
+
+    def _running_setting(self) -> EngineSetting:
+        """The setting that runs: the choice's with the views switched on (without the head camera, whose
+        accuracy the model's line gives: the choice's)."""
+        return self.choice.with_setting(views=self.views).setting if "ego" in self.views else self.choice.setting
+
+    def _running_accuracy(self) -> ModelAccuracy:
+        """The running setting's one accuracy (`model_accuracy`: the atlas's once this model's weights are in it,
+        else its card's), worked out again only when the setting, the model or the atlas changed."""
+        key = (self._running_setting(), self.choice.checkpoint, self.atlas)
+        if self._accuracy[0] != key:
+            self._accuracy = (key, running_accuracy(dataclasses.replace(self.choice, setting=key[0]), self.atlas))
+        return self._accuracy[1]
 
     def _views_used(self) -> tuple[str, ...]:
         """The views the running model takes anything from (none without a model)."""
         return views_used(self.views, self._pose_only) if self.live is not None else ()
 
-    def _model_line(self, snapshot: Snapshot | None) -> str:
-        """The model's label, with the illustrative-only note while the poses come from the camera."""
+    def _model_line(self, snapshot: Snapshot | None, accuracy: str) -> str:
+        """The model's title with its one `accuracy` line, and the illustrative-only note while the poses come from
+        the camera."""
+        line = f"{self._model}; {accuracy}" if accuracy and self.live else self._model
         camera = snapshot is not None and snapshot.pose_source == POSE_FROM_CAMERA
-        return f"{self._model} — {self._camera_note}" if camera and self._camera_note and self.live else self._model
+        return f"{line} — {self._camera_note}" if camera and self._camera_note and self.live else line
 
     def recording_status(self) -> str | None:
         return None

@@ -11,6 +11,7 @@ import numpy as np
 from tqdm import tqdm
 
 from touchanything.app.sessions.budget_watch import BudgetWatch
+from touchanything.app.sessions.bundled import ATLAS_FILE
 from touchanything.app.sessions.engine_choice import (
     ModelChoice,
     build_engine,
@@ -24,6 +25,7 @@ from touchanything.app.sessions.replay_inputs import require_ego
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.app.sessions.rerun_output import episode_name, finish, open_recording, session_properties
 from touchanything.app.sessions.rerun_sink import RerunSink
+from touchanything.app.sessions.setting_choice import display_atlas, running_accuracy
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import is_plain_video, open_episode
 from touchanything.devices.errors import UserError
@@ -51,7 +53,9 @@ def replay_to_video(paths: Sequence[Path], choice: ModelChoice, out: Path | None
         engine = build_engine(choice)
         sources = [ReplaySource(e, ReplayConfig(speed=None, views=views, pose_source=pose_source_for(e))) for e in episodes]
         camera = any(pose_source_for(e) == "camera" for e in episodes)
-        model = tuple(line for line in (model_name(choice), illustrative_note(choice, camera)) if line)
+        accuracy = running_accuracy(choice, display_atlas(ATLAS_FILE)[0]).line
+        named = f"{model_name(choice)}; {accuracy}" if accuracy else model_name(choice)
+        model = tuple(line for line in (named, illustrative_note(choice, camera)) if line)
         tour = [f"episode {k + 1} of {len(paths)}: {episode_name(e)}" for k, e in enumerate(episodes)] if len(paths) > 1 else []
         setting = choice.setting.name()
         footers = ([f"{setting} · episode {k + 1}/{len(paths)} {e.scene}/{e.task}" for k, e in enumerate(episodes)]
@@ -77,7 +81,7 @@ def replay_to_video(paths: Sequence[Path], choice: ModelChoice, out: Path | None
             if found := episode.problems[known[k]:]:  # what reading the frames found (a damaged chunk, an undecodable frame)
                 print(f"problems  {len(found)} more found while replaying" + (f" {episode_name(episode)}" if tour else ""))
                 print("\n".join(f"  - {problem}" for problem in found))
-    print(f"model     {model_label(choice, engine)}, {engine.runtime.capture}")
+    print(f"model     {model_label(choice, engine)}, {engine.runtime.capture}" + (f"; {accuracy}" if accuracy else ""))
     print(f"setting   {setting}")
     steps = [ms for s in summaries for ms in s.step_ms]
     if budget is not None and (line := budget.after(float(np.percentile(steps, 99)) if steps else None)):

@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from touchanything.app.sessions.budget_watch import BudgetWatch
 from touchanything.app.sessions.bundled import ATLAS_FILE, SAMPLE_DIR, bundled_models
-from touchanything.app.sessions.engine_choice import ModelChoice
+from touchanything.app.sessions.engine_choice import ModelChoice, is_bundled
 from touchanything.devices.errors import UserError, require_finite_positive
 from touchanything.inference.engine.engine_setting import NAME_HELP
 from touchanything.inference.evaluation.atlas import (
@@ -23,6 +24,8 @@ from touchanything.inference.evaluation.atlas import (
     read_atlas,
     rows_for,
 )
+from touchanything.inference.model.model_card import read_card
+from touchanything.viz.model_accuracy import ModelAccuracy, model_accuracy
 
 PROBE_CLIP_FRAMES = 60
 ENGINE_OPTIONS = ("checkpoint", "config", "runtime", "precision", "views", "onnx")
@@ -58,6 +61,12 @@ class PickedSetting:
         if self.budget_ms is None or self.p99_ms is None:
             return None
         return BudgetWatch(self.row.name, self.budget_ms, self.p99_ms)
+
+
+def running_accuracy(choice: ModelChoice, rows: Sequence[AtlasRow]) -> ModelAccuracy:
+    """The one held-out accuracy said of the running model (`viz.model_accuracy`): from the atlas `rows` (those
+    of the models here, `display_atlas`) when its checkpoint is a bundled model's, else from its card."""
+    return model_accuracy(choice.setting, rows if is_bundled(choice.checkpoint) else (), read_card(choice.checkpoint))
 
 
 def display_atlas(atlas: Path) -> tuple[tuple[AtlasRow, ...], str]:

@@ -2,7 +2,8 @@
 latency where the atlas was measured (log scale) against held-out volumetric IoU, one colour per model — and the
 running setting as a ring at its p99 step time measured live (the engine's per-frame time over its recent
 predictions) and its accuracy in the atlas. Switching model, runtime, views or rate moves the ring; a setting
-the atlas does not hold is drawn as a dashed line at its live latency. Drawn as dearpygui geometry (no texture)."""
+the atlas does not hold is drawn as a dashed line at its live latency. The line under the plot follows the shown
+prediction: without one on screen it gives no latency. Drawn as dearpygui geometry (no texture)."""
 from __future__ import annotations
 
 import math
@@ -74,10 +75,13 @@ class AtlasPanel:
             dpg.draw_circle((self.right + 14, y + 6), 4, fill=colour, color=colour, parent=self.layer)
             dpg.draw_text((self.right + 22, y), model, size=12, color=colour, parent=self.layer)
 
-    def update(self, setting: str, p99_ms: float | None) -> None:
-        """Put the ring at the running `setting`'s live p99 (None: not measured yet) and its atlas accuracy."""
+    def update(self, setting: str, p99_ms: float | None, timed: int, predicted: bool, accuracy: str) -> None:
+        """Put the ring at the running `setting`'s live p99 (None: too few of its `timed` steps yet) and its atlas
+        accuracy, while the shown record has a prediction (`predicted`; else no ring and no latency); `accuracy`:
+        the running model's one accuracy as the line ends (`ModelAccuracy.caption`)."""
         row = next((r for r in self.rows if r.name == setting), None)
-        where = "no prediction yet" if p99_ms is None else f"p99 {p99_ms:.1f} ms here"
+        p99_ms = p99_ms if predicted else None
+        where = _latency_words(p99_ms, timed, predicted)
         if p99_ms is not None and self.rows and not self._span[0] <= math.log10(max(p99_ms, 1e-3)) <= self._span[1]:
             where += " (drawn at the edge of the scale)"
         if not self.rows or p99_ms is None:
@@ -89,10 +93,18 @@ class AtlasPanel:
             dpg.configure_item(self.line, p1=(-20, -20), p2=(-20, -20))
             self.ring = (self.x(p99_ms), self.y(row.volumetric_iou))
             dpg.configure_item(self.marker, center=self.ring)
-        accuracy = "not in the atlas" if row is None else f"V-IoU {row.volumetric_iou:.3f} in the atlas"
         dpg.configure_item(self.caption, text=f"running {setting}: {where}, {accuracy}" if setting else "")
 
     def _hide(self) -> None:
         self.ring = None
         dpg.configure_item(self.marker, center=(-20, -20))
         dpg.configure_item(self.line, p1=(-20, -20), p2=(-20, -20))
+
+
+def _latency_words(p99_ms: float | None, timed: int, predicted: bool) -> str:
+    """The caption's latency: the live p99, how many steps are timed so far, or that no prediction is shown."""
+    if not predicted:
+        return "no prediction on screen"
+    if p99_ms is None:
+        return f"{timed} prediction{'' if timed == 1 else 's'} timed, too few for a p99"
+    return f"p99 {p99_ms:.1f} ms here"

@@ -72,6 +72,9 @@ SPREAD_TIPS = {True: "show the members' spread (how much the ensemble's models d
 """The spread toggle's tooltip, by whether an ensemble runs."""
 DISABLED_TEXT = (128, 128, 128)
 """A disabled control's label colour (dearpygui draws it as an enabled one's otherwise)."""
+BEND_TIP = ("hatched grey cells: the finger bend (flex) sensors — how far a finger is bent, not pressure — on their own "
+            "grey scale (lighter: more bent); contact, the lamps and the outline use the tactile cells only")
+"""The maps' tooltip: what the hatched cells are (`pressure_panel`)."""
 HAND_LABEL_SPACING = 21 * CELL + MAP_GAP - round(len(HAND_LABELS[0]) * CHAR_WIDTH)
 """Puts the right hand's label under the right map."""
 
@@ -210,6 +213,8 @@ class Dashboard:
                                         continue
                                     dpg.add_text("", tag=f"title_{name}")
                                     dpg.add_image(self.maps[name].tag, tag=f"image_{name}", width=MAPS[0], height=MAPS[1])
+                                    with dpg.tooltip(f"image_{name}"):
+                                        dpg.add_text(BEND_TIP, wrap=400)
                                     with dpg.group(horizontal=True, horizontal_spacing=HAND_LABEL_SPACING):
                                         for label in HAND_LABELS:
                                             dpg.add_text(label)
@@ -352,7 +357,8 @@ class Dashboard:
             self.maps[name].show(blank(*MAPS, "n/a") if image is None else image)
             dpg.set_value(f"title_{name}", title)
         self.lamps.update(facts)
-        self.plots.show_values(None if facts is None else facts.rolling, None if prediction is None else prediction.latency_ms)
+        predicted = facts is not None and facts.predicted  # a latency only of a prediction on screen
+        self.plots.show_values(None if facts is None else facts.rolling, prediction.latency_ms if predicted else None)
         self._tables.show_metrics(facts)
         if prediction is not None and prediction is not self._frame.prediction:
             self.stats.prediction_lag_ms.append((now_us - prediction.t_us) / 1e3)
@@ -363,7 +369,9 @@ class Dashboard:
             self.plots.update(state.history)
         if self._changed("atlas", state.atlas):
             self.atlas.show_atlas(state.atlas, state.atlas_note)
-        running = (state.setting, None if state.step_p99_ms is None else round(state.step_p99_ms, 1))
+        predicted = state.facts is not None and state.facts.predicted  # the shown record, as the maps
+        running = (state.setting, None if state.step_p99_ms is None else round(state.step_p99_ms, 1), state.steps_timed,
+                   predicted, state.accuracy.caption)
         if self._refresh_due("atlas") and self._changed("running", running):
             self.atlas.update(*running)
         if self._refresh_due("tables"):

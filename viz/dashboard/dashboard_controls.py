@@ -205,8 +205,7 @@ class Tables:
             if not dpg.is_item_active("seek"):
                 texts[("seek", "value")] = shown
         for stage, _ in STAGES:
-            value = state.stage_ms.get(stage)
-            texts[(f"stage_{stage}", "value")] = ("-" if stage == POSE_STAGE else "skipped") if value is None else f"{value:.1f}"
+            texts[(f"stage_{stage}", "value")] = _stage_text(state, stage)
         rows = state.sources[:DEVICE_ROWS]
         for row in range(DEVICE_ROWS):
             texts[(f"device_row_{row}", "show")] = row < len(rows)
@@ -227,11 +226,30 @@ def _shown_frame(state: SessionState) -> int:
     return min(frame, playback.frames - 1)
 
 
+def _on_screen(state: SessionState) -> bool:
+    """Whether the shown record has a prediction (what the engine's times and latency describe)."""
+    return state.facts is not None and state.facts.predicted
+
+
+def _stage_text(state: SessionState, stage: str) -> str:
+    """A stage's mean time: the pose's ("-" when not estimated), the engine's ("n/a" without a prediction on
+    screen, "skipped" when the stage did not run)."""
+    value = state.stage_ms.get(stage)
+    if stage == POSE_STAGE:
+        return "-" if value is None else f"{value:.1f}"
+    if not _on_screen(state):
+        return "n/a"
+    return "skipped" if value is None else f"{value:.1f}"
+
+
 def _performance_line(state: SessionState, display_fps: float) -> str:
     """The display's and the engine's rates and the recent latency; paused, the engine is said to be paused
-    (its last rates and latencies are not current)."""
+    (its last rates and latencies are not current); without a prediction on screen (no head camera, none yet)
+    the engine's figures are left out."""
     if state.playback is not None and state.playback.paused:
         return f"display {display_fps:.0f} fps, engine paused"
+    if not _on_screen(state):
+        return f"display {display_fps:.0f} fps, no prediction on screen"
     latency = state.history.get("latency_ms", np.zeros(0))[-30:]
     text = f"display {display_fps:.0f} fps, engine {state.engine_fps:.1f} fps"
     if latency.size:

@@ -16,6 +16,7 @@ from touchanything.viz.pressure_panel import (
     SPREAD_HIGH,
     SPREAD_TITLE,
     dimmed,
+    layout_bend,
     pressure_maps,
     put_text,
     unposed_as_nan,
@@ -57,14 +58,15 @@ def pressure_views(state: SessionState, cell: int, threshold: float, outline: bo
     (optionally with the measured contact region outlined) and error maps; with `spread` and an ensemble running
     (`state.members` > 1) the predicted map shows the prediction's members' spread instead, on the spread's scale
     (`SPREAD_MAP_TITLE`, no outline). Which hand each map shows, and each title's "no pose" / "no glove", come
-    from the prediction's facts (`state.facts`): map and title agree."""
+    from the prediction's facts (`state.facts`): map and title agree. Bend cells are drawn as such in the
+    pressure and error maps (`pressure_panel`); the outline is of the measured tactile cells only."""
     prediction, truth, facts = state.prediction, state.truth, state.facts
     titles = dict(MAP_TITLES)
     if truth is None:
         measured = (None, f"{titles['measured']}: n/a (no glove / ground truth)")
     else:
         gloveless = [name for name, hand in zip(HANDS, facts.hands) if not hand.measured] if facts is not None else []
-        measured = (pressure_maps(truth, cell, empty="no glove"), titles["measured"] + _without(gloveless, "no glove"))
+        measured = (pressure_maps(truth, cell, empty="no glove", bend=layout_bend()), titles["measured"] + _without(gloveless, "no glove"))
     shows_spread = spread and state.members > 1
     pred = None
     if prediction is None or prediction.pressure is None or facts is None:
@@ -74,9 +76,10 @@ def pressure_views(state: SessionState, cell: int, threshold: float, outline: bo
         pred = unposed_as_nan(prediction.pressure, facts.posed)
         title = titles["predicted"] + (" + measured contact" if outline and truth is not None else "")
         predicted = spread_view(prediction, facts, cell) if shows_spread else \
-            (pressure_maps(pred, cell, outline=truth if outline else None, threshold=threshold, empty="no pose"),
+            (pressure_maps(pred, cell, outline=truth if outline else None, threshold=threshold, empty="no pose",
+                           bend=layout_bend()),
              title + _without(facts.unposed, "no pose"))
-    error = (pressure_maps(pred - truth, cell, error=True), titles["error"]) if pred is not None and truth is not None \
+    error = (pressure_maps(pred - truth, cell, error=True, bend=layout_bend()), titles["error"]) if pred is not None and truth is not None \
         else (None, f"{titles['error']}: n/a")
     return {"measured": measured, "predicted": predicted, "error": error}
 

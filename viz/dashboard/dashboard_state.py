@@ -12,6 +12,7 @@ from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.evaluation.atlas import AtlasRow
 from touchanything.viz.frame_facts import FrameFacts, Metrics
+from touchanything.viz.model_accuracy import ModelAccuracy
 
 
 @dataclass(frozen=True)
@@ -53,10 +54,13 @@ class SessionState:
     anything from (`view_sets.views_used`: none for a pose-only model, none without a model); history: recent
     series by name (volumetric_iou, contact_iou rolling; latency_ms), oldest first; stage_ms: mean
     engine stage times over recent steps; engine_fps: predictions per second; sources: device rows;
-    playback: None in live mode; model: the running model and tier; message: the latest notice; setting: the
-    running engine setting's name (`nano/onnx-int8/all`); step_p99_ms: p99 of the engine's per-frame step time
-    over its recent predictions (None before enough of them); atlas: the speed/accuracy atlas's settings of the
-    models here (empty, with `atlas_note` saying why, when there is none); members: the running engine's
+    playback: None in live mode; model: the running model and tier with its one held-out accuracy; accuracy: that
+    accuracy and its source (`model_accuracy`: the model line's and the atlas line's); message: the latest notice;
+    setting: the running engine setting's name (`nano/onnx-int8/all`); step_p99_ms: p99 of the engine's per-frame
+    step time over its recent predictions (None before enough of them); steps_timed: how many step times that
+    window holds (predictions with pressure since the setting last restarted, at most its length); atlas: the
+    speed/accuracy atlas's settings of the models here (empty, with `atlas_note` saying why, when there is none);
+    members: the running engine's
     ensemble members (1 for a single model and without a model: its predictions have no spread); news: how many
     records (snapshot with prediction) the session has published, this one included (`wait_for_news`)."""
 
@@ -72,10 +76,12 @@ class SessionState:
     sources: tuple[SourceStatus, ...] = ()
     playback: Playback | None = None
     model: str = ""
+    accuracy: ModelAccuracy = ModelAccuracy(caption="")
     message: str = ""
     recording: str | None = None
     setting: str = ""
     step_p99_ms: float | None = None
+    steps_timed: int = 0
     atlas: tuple[AtlasRow, ...] = ()
     atlas_note: str = ""
     members: int = 1
