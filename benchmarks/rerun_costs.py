@@ -9,13 +9,13 @@ episode. Times are the calling thread's CPU time (robust on a busy machine) and 
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from report_files import add_report_arguments, machine, write_report  # benchmarks/ is the script's folder
 
 ROOT = Path(__file__).resolve().parents[1]
 EPISODE = ROOT / "recordings" / "sample" / "Home" / "slide_box_cardboard" / "sim0007_00000"
@@ -83,10 +83,9 @@ def main() -> int:
     from touchanything.devices.episodes.episode_loader import open_episode
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--json", type=Path)
-    parser.add_argument("--md", type=Path)
+    add_report_arguments(parser)
     args = parser.parse_args()
-    record = {"machine": f"{os.cpu_count()} CPU cores ({platform.machine()}), Python {platform.python_version()}",
+    record = {"machine": machine(),
               "load": " ".join(f"{x:.1f}" for x in os.getloadavg()),
               "command": "python benchmarks/rerun_costs.py " + " ".join(sys.argv[1:])}
     with open_episode(EPISODE) as episode, tempfile.TemporaryDirectory() as folder:
@@ -94,11 +93,7 @@ def main() -> int:
         record["videos"] = logging_cost(episode, Path(folder), True, 1.0)
         record["jpeg"] = logging_cost(episode, Path(folder), False, 1.0)
         record["live"] = logging_cost(episode, Path(folder), False, 0.5)
-    for path, text in ((args.json, json.dumps(record, indent=1) + "\n"), (args.md, markdown(record))):
-        if path:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text)
-    print(markdown(record))
+    write_report(record, markdown(record), args.json, args.md)
     return 0
 
 

@@ -15,13 +15,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from report_files import add_report_arguments, machine, write_report  # benchmarks/ is the script's folder
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -131,10 +131,9 @@ def main() -> int:
     parser.add_argument("--segment", type=float, default=60.0, help="seconds per segment")
     parser.add_argument("--rounds", type=int, default=2, help="off/on pairs")
     parser.add_argument("--minutes", type=int, default=0, help="then a long run with the recording on")
-    parser.add_argument("--json", type=Path)
-    parser.add_argument("--md", type=Path)
+    add_report_arguments(parser)
     args = parser.parse_args()
-    record = {"machine": f"{os.cpu_count()} CPU cores ({platform.machine()}), Python {platform.python_version()}",
+    record = {"machine": machine(),
               "load": " ".join(f"{x:.1f}" for x in os.getloadavg()),
               "command": "python benchmarks/rerun_live.py " + " ".join(sys.argv[1:]), "segments": [], "minutes": []}
     with tempfile.TemporaryDirectory(prefix="touchanything-rerun-") as folder:
@@ -145,11 +144,7 @@ def main() -> int:
         if args.minutes:
             record["minutes"] = long_run(args.minutes, Path(folder) / "long.rrd",
                                          lambda line: print(line, file=sys.stderr, flush=True))
-    for path, text in ((args.json, json.dumps(record, indent=1) + "\n"), (args.md, markdown(record))):
-        if path:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text)
-    print(markdown(record))
+    write_report(record, markdown(record), args.json, args.md)
     return 0
 
 

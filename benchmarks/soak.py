@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 import tempfile
 import threading
@@ -22,6 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from report_files import add_report_arguments, machine, write_report  # benchmarks/ is the script's folder
 
 ROOT = Path(__file__).resolve().parents[1]
 POLL_HZ = 30
@@ -126,19 +126,14 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=int, default=30)
     parser.add_argument("--row-seconds", type=float, default=60.0, help="length of a row (default 60: a row a minute)")
-    parser.add_argument("--json", type=Path)
-    parser.add_argument("--md", type=Path)
+    add_report_arguments(parser)
     args = parser.parse_args()
     if args.minutes < 1 or not 1 <= args.row_seconds <= 3600:  # also NaN
         parser.error(f"--minutes must be ≥ 1 and --row-seconds 1–3600, got {args.minutes} and {args.row_seconds}")
     record = soak(args.minutes, lambda line: print(line, file=sys.stderr, flush=True), args.row_seconds)
-    record.update(machine=f"{os.cpu_count()} CPU cores ({platform.machine()}), Python {platform.python_version()}",
+    record.update(machine=machine(),
                   command="python benchmarks/soak.py " + " ".join(sys.argv[1:]))
-    for path, text in ((args.json, json.dumps(record, indent=1) + "\n"), (args.md, markdown(record))):
-        if path:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text)
-    print(markdown(record))
+    write_report(record, markdown(record), args.json, args.md)
     return 0
 
 

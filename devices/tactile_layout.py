@@ -6,7 +6,6 @@ as in the official data. Cells outside the layout are NaN.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -14,20 +13,13 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.devices.errors import DataError
+from touchanything.devices.json_files import read_json_file
+from touchanything.devices.snapshot import HANDS
 
 GRID_SIZE = 21
 RAW_SLOTS = 256
 MAPPING_FILES = ("pressure_position_mapping_left.json", "pressure_position_mapping_right.json")
 BEND_FILE = "hand_joint_positions.json"
-
-
-def _read_json(path: Path) -> object:
-    try:
-        return json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise DataError(path, None, "file not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DataError(path, None, f"not a readable JSON file ({exc})") from None
 
 
 def _parse_cell(path: Path, key: str) -> tuple[int, int]:
@@ -43,7 +35,7 @@ def _parse_cell(path: Path, key: str) -> tuple[int, int]:
 
 def read_mapping(path: Path) -> np.ndarray:
     """Read an official `{"row,col": sensor_index}` file into a (21, 21) int16 grid, −1 where unmapped."""
-    data = _read_json(path)
+    data = read_json_file(path)
     if not isinstance(data, dict) or not data:
         raise DataError(path, None, 'expected a non-empty object {"row,col": sensor_index}')
     grid = np.full((GRID_SIZE, GRID_SIZE), -1, np.int16)
@@ -57,11 +49,11 @@ def read_mapping(path: Path) -> np.ndarray:
 
 def read_bend_cells(path: Path) -> np.ndarray:
     """Read the official `hand_joint_positions.json` into (2, 21, 21) bool (display coordinates)."""
-    data = _read_json(path)
+    data = read_json_file(path)
     bend = np.zeros((2, GRID_SIZE, GRID_SIZE), bool)
     if not isinstance(data, dict):
         raise DataError(path, None, "expected an object with 'left' and 'right' lists")
-    for h, hand in enumerate(("left", "right")):
+    for h, hand in enumerate(HANDS):
         cells = data.get(hand)
         if not isinstance(cells, list):
             raise DataError(path, hand, "missing or not a list of cells")
@@ -94,7 +86,7 @@ class TactileLayout:
         outside = bend & (index < 0)
         if outside.any():
             h, r, c = np.argwhere(outside)[0]
-            raise DataError(bend_cells, ("left", "right")[h], f"bend cell {r},{c} is outside the layout")
+            raise DataError(bend_cells, HANDS[h], f"bend cell {r},{c} is outside the layout")
         return cls(index, bend, str(Path(mapping_left).parent))
 
     @classmethod

@@ -18,10 +18,10 @@ from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.jq_glove import JQGlove, JQGloveConfig
 from touchanything.devices.hardware.jq_protocol import MAX_BUFFERED, SYNC, JQStreamParser, encode_sample
 from touchanything.devices.sim.glove_serial import SimulatedGloveSerial, episode_glove_provider
+from touchanything.devices.snapshot import HANDS
 
 ROOT = Path(__file__).resolve().parents[1]
 FIRST, SAMPLE = 134, 284
-SIDES = ("left", "right")
 quaternions = st.lists(st.floats(-2, 2, width=32), min_size=4, max_size=4)
 
 
@@ -66,7 +66,7 @@ def test_encode_sample_layout() -> None:
 
 
 @settings(max_examples=150, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from(SIDES), st.binary(min_size=256, max_size=256), quaternions),
+@given(st.lists(st.tuples(st.sampled_from(HANDS), st.binary(min_size=256, max_size=256), quaternions),
                 min_size=1, max_size=6),
        st.lists(st.integers(0, 6 * SAMPLE + 4), max_size=30))
 def test_any_chunking_gives_exactly_the_encoded_samples(encoded, cuts) -> None:
@@ -104,7 +104,7 @@ def corrupt(data: bytes, edits: list[tuple[int, str, int, bytes]]) -> tuple[byte
 @settings(max_examples=150, deadline=None)
 @given(st.integers(3, 12), st.data())
 def test_corruption_never_yields_a_foreign_sample_and_the_parser_recovers(count, data) -> None:
-    sides = data.draw(st.lists(st.sampled_from(SIDES), min_size=count, max_size=count))
+    sides = data.draw(st.lists(st.sampled_from(HANDS), min_size=count, max_size=count))
     stream = b"".join(encode_sample(sides[i], *indexed_sample(i)) for i in range(count)) + SYNC
     starts = [SAMPLE * (i // 2) + FIRST * (i % 2) for i in range(2 * count)]
     edited = data.draw(st.lists(st.integers(0, 2 * count - 1), min_size=1, max_size=4, unique=True))

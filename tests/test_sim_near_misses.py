@@ -33,12 +33,11 @@ from touchanything.devices.sim.episode_stats import EpisodeStats
 from touchanything.devices.sim.pose_ambiguity import APART, nearest_rms, pose_statistics
 from touchanything.devices.sim.pose_estimate import TIME_CONSTANT, estimate_joints, smooth_noise
 from touchanything.devices.sim.renderer import render
-from touchanything.devices.sim.script_base import SIDES
 from touchanything.devices.sim.shapes import pose_at
 from touchanything.devices.sim.task_scripts import Planner
 from touchanything.devices.sim.touch import touch_frame
 from touchanything.devices.sim.world import make_object, static_faces
-from touchanything.devices.snapshot import FPS
+from touchanything.devices.snapshot import FPS, HANDS
 
 HEAD = head_camera(np.array([0.0, -0.2, 0.45]), np.array([0.0, 0.2, 0.0]))
 MODEL_SIZE = 112
@@ -64,7 +63,7 @@ def _run(objects, actions, seed: int = 0):
     joints = np.zeros((len(motion.times), 2, 21, 3))
     squash = np.zeros((len(motion.times), len(objects)))
     for k in range(len(motion.times)):
-        hands, pressure = touch_frame(objects, motion.object_poses[k], motion.hand_poses[k], motion.flexion[k], SIDES)
+        hands, pressure = touch_frame(objects, motion.object_poses[k], motion.hand_poses[k], motion.flexion[k], HANDS)
         for h, hand in enumerate(hands):
             tactile = np.isnan(hand.bend) & ~np.isnan(hand.cell_points[..., 0])
             touching[k, h] = (pressure[h][tactile] > 0.0).any()
@@ -131,7 +130,7 @@ def _sponge_scene(squash: float | None):
     objects = [sponge, make_object("mug_red", -0.2, 0.28)]
     script, motion, touching, _, squashes = _run(objects, [(REST, 0, 1, None)], seed=3)
     k = int(np.argmax(squashes[:, 0]))
-    hands, pressure = touch_frame(objects, motion.object_poses[k], motion.hand_poses[k], motion.flexion[k], SIDES)
+    hands, pressure = touch_frame(objects, motion.object_poses[k], motion.hand_poses[k], motion.flexion[k], HANDS)
     if squash is not None:
         sponge.squash = squash
     scene = SCENES["Home"]
@@ -165,7 +164,7 @@ def _rest_images(gap: float):
     k = int(np.flatnonzero(touching[:, 1])[len(np.flatnonzero(touching[:, 1])) // 2])
     poses = motion.hand_poses[k].copy()
     poses[1, 2, 3] += gap
-    hands, pressure = touch_frame(objects, motion.object_poses[k], poses, motion.flexion[k], SIDES)
+    hands, pressure = touch_frame(objects, motion.object_poses[k], poses, motion.flexion[k], HANDS)
     scene = SCENES["Office"]
     world = _scene(static_faces(scene), objects, hands, np.array([60.0, 80.0, 120.0]), scene.lighting)
     image = render(wrist_camera("right", poses[1]), world)

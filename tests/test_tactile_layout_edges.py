@@ -89,6 +89,15 @@ def test_an_empty_mapping_and_an_unreadable_file(tmp_path):
     assert err.value.field is None
 
 
+def test_a_layout_file_nested_too_deeply_is_a_data_error_not_a_crash(tmp_path):
+    """The layout files are read by the same reader as the episode files (`json_files.read_json_file`)."""
+    path = tmp_path / "hand_joint_positions.json"
+    path.write_text("[" * 200_000 + "]" * 200_000)
+    with pytest.raises(DataError, match=r"not a readable JSON file \(nested too deeply\)") as err:
+        read_bend_cells(path)
+    assert err.value.path == path
+
+
 @pytest.mark.parametrize("bend, field, problem", [
     ([], None, "expected an object"),
     ({"left": []}, "right", "missing or not a list"),

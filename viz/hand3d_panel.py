@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from touchanything.devices.snapshot import HANDS
 from touchanything.viz.colormap import PRESSURE_LUT, apply
 from touchanything.viz.hand_surface import cross, hand_topology, hand_vertices, palm_frame, vertex_values
 from touchanything.viz.pressure_panel import BACKGROUND, put_text
@@ -108,7 +109,7 @@ def hand3d_panel(joints: np.ndarray, valid: np.ndarray, measured: np.ndarray | N
     drawings = [draw_hand(hands[side], side, cell, height - TITLE_HEIGHT) if valid[side] else None for side in range(2)]
     titles, views = [], []
     for grids, label in ((measured, "Measured"), (predicted, "Predicted")):
-        for side, hand in enumerate(("left", "right")):
+        for side, hand in enumerate(HANDS):
             if grids is None:
                 titles.append(f"{label}: n/a")
             elif drawings[side] is None:

@@ -3,8 +3,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
-import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -20,7 +18,7 @@ from touchanything.devices.output_safety import add_overwrite_argument, check_re
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.view_sets import VIEW_HELP, VIEW_SETS, view_set_name, views_used
-from touchanything.inference.evaluation.metrics import DETECTION_METRICS, EVENT_METRICS, METRICS
+from touchanything.inference.evaluation.evaluation_report import RESULT_FILES, markdown, results_json
 from touchanything.inference.model.torch_device import (
     PRECISIONS,
     ProcessGroup,
@@ -34,10 +32,6 @@ if TYPE_CHECKING:
     from touchanything.app.sessions.rerun_trajectories import TrajectoryRecordings
     from touchanything.inference.evaluation.evaluation import EvaluationResult
     from touchanything.inference.model.models import TactileModel
-
-RESULT_FILES = ("results.json", "results.md")
-TIMING_COLUMNS = DETECTION_METRICS[:3] + EVENT_METRICS[:4]
-"""The extra metrics in the Markdown table (support and event counts are in results.json only)."""
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -76,62 +70,6 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     add_rerun_arguments(parser, serve=False)
     add_overwrite_argument(parser, "--out's results.json and results.md, or --rerun")
     parser.set_defaults(run=run)
-
-
-def _cell(value: float) -> str:
-    return "n/a" if math.isnan(value) else f"{value:.4f}"
-
-
-def _rows(label: str, summary: dict[str, dict[str, float]], keys: tuple[str, ...]) -> list[str]:
-    return [f"| {label} | {scene} | " + " | ".join(_cell(metrics[k]) for k in keys) + " |" for scene, metrics in summary.items()]
-
-
-def _table(results: list[EvaluationResult], mode: str, keys: tuple[str, ...]) -> list[str]:
-    """A row per view configuration (and its pose-only baseline) and scene, a column per metric of `keys`."""
-    lines = ["| views | scene | " + " | ".join(keys) + " |", "|---|---|" + "---|" * len(keys)]
-    for result in results:
-        lines += _rows(result.label, result.summary(mode), keys)
-    return lines + [""]
-
-
-def baseline_pairs(results: list[EvaluationResult]) -> list[tuple[EvaluationResult, EvaluationResult]]:
-    """(real, pose-only twin) results of the model for the same view configuration."""
-    model = [r for r in results if not r.baseline]
-    real = {r.views: r for r in model if not r.blank}
-    return [(real[r.views], r) for r in model if r.blank]
-
-
-def _share_table(results: list[EvaluationResult], mode: str) -> list[str]:
-    """The vision share of each metric, a row per view configuration and scene (none without baselines)."""
-    from touchanything.inference.evaluation.evaluation import vision_share_summary
-
-    pairs = baseline_pairs(results)
-    if not pairs:
-        return []
-    keys = METRICS + TIMING_COLUMNS
-    lines = [f"### {mode}: share carried by vision (real − pose only) / max(real, pose only); MAE reversed", "",
-             "| views | scene | " + " | ".join(keys) + " |", "|---|---|" + "---|" * len(keys)]
-    for real, blank in pairs:
-        lines += _rows(real.views, vision_share_summary(real, blank, mode), keys)
-    return lines + [""]
-
-
-def markdown(results: list[EvaluationResult], split: str, pose_only: str | None = None,
-             baselines: dict[str, str] | None = None) -> str:
-    """The paper's Table 2 layout (a row per view configuration and scene), stitched and causal, each followed
-    by the contact-timing metrics the official module computes but does not report, and by the vision share
-    when pose-only baselines (of the checkpoint `pose_only`) were run; rows "views · NAME" are the baseline
-    checkpoints `baselines` (name → checkpoint)."""
-    lines = [f"# Evaluation on `{split}`", ""]
-    if pose_only:
-        lines += [f"Pose-only rows: `{pose_only}` with every frame black.", ""]
-    for name, checkpoint in (baselines or {}).items():
-        lines += [f"Baseline rows `· {name}`: `{checkpoint}`.", ""]
-    for mode, title in (("stitched", "official stitched (average of covering clips)"), ("causal", "causal newest-frame")):
-        lines += [f"## {title}", ""] + _table(results, mode, METRICS)
-        lines += [f"### {mode}: contact timing (computed officially, not reported)", ""] + _table(results, mode, TIMING_COLUMNS)
-        lines += _share_table(results, mode)
-    return "\n".join(lines)
 
 
 def trajectory_frames(episode, prediction, gt, hand3d: bool = False, used: tuple[str, ...] = VIEW_NAMES):
@@ -211,19 +149,6 @@ def _evaluate_views(args: argparse.Namespace, model, files: list[Path], views: s
 
         return evaluate(model, files, views, args.batch_size, args.ego_path, args.precision, group,
                         on_trajectory=done, on_frames=lambda n: bar.update(int(n)), blank=blank)
-
-
-def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> dict:
-    """One entry of results.json; a pose-only baseline also carries its `vision_share` per mode and scene."""
-    from touchanything.inference.evaluation.evaluation import vision_share_summary
-
-    record = {"views": result.views, "pose_only": result.blank, "baseline": result.baseline or None,
-              "stitched": result.summary("stitched"),
-              "causal": result.summary("causal")}
-    real = next((r for r, b in baseline_pairs(results) if b is result), None)
-    if real is not None:
-        record["vision_share"] = {mode: vision_share_summary(real, result, mode) for mode in ("stitched", "causal")}
-    return {**record, "trajectories": result.rows, "failed": result.failures}
 
 
 def pose_only_model(args: argparse.Namespace, model: TactileModel, device) -> tuple[Path | None, TactileModel | None]:
@@ -311,13 +236,12 @@ def run(args: argparse.Namespace) -> int:
     failures = list(dict.fromkeys(line for result in results for line in result.failures))
     for line in failures:
         print(f"touchanything eval: failed: {line}", file=sys.stderr)
-    table = markdown(results, args.split, baseline and str(baseline), {n: str(c) for n, (c, _) in baselines.items()})
+    checkpoints = {n: str(c) for n, (c, _) in baselines.items()}
+    table = markdown(results, args.split, baseline and str(baseline), checkpoints)
     print(table)
     if args.out:
-        payload = {"split": args.split, "checkpoint": str(args.checkpoint), "ego_path": args.ego_path,
-                   "pose_only_checkpoint": baseline and str(baseline),
-                   "baselines": {n: str(c) for n, (c, _) in baselines.items()}, "results": [result_record(r, results) for r in results]}
-        write_text(args.out / RESULT_FILES[0], json.dumps(payload, indent=1, allow_nan=True) + "\n")
+        write_text(args.out / RESULT_FILES[0], results_json(results, args.split, str(args.checkpoint), args.ego_path,
+                                                            baseline and str(baseline), checkpoints))
         write_text(args.out / RESULT_FILES[1], table)
         print(f"results: {args.out / 'results.json'}, {args.out / 'results.md'}")
     if args.rerun is not None:

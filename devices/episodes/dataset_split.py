@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.episodes.episode_files import read_json_file
 from touchanything.devices.errors import DataError, UserError, failure_line, require_fraction, require_seed
+from touchanything.devices.json_files import read_json_file
 from touchanything.devices.output_safety import write_text
 
 SPLIT_KEYS = ("train", "val", "test_seen", "test_unseen")

@@ -1,15 +1,14 @@
 """The non-video, non-JSONL files of a raw EgoTouch episode: pressure grids, masks, quality, intrinsics."""
 from __future__ import annotations
 
-import json
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from touchanything.devices.errors import DataError, describe
+from touchanything.devices.json_files import read_json_file
 from touchanything.devices.snapshot import HANDS
 
 GRID_KEYS = ("left_pressure_grid", "right_pressure_grid")
@@ -144,18 +143,6 @@ def read_masks(path: Path) -> Masks:
     if not (masks.shape[0] == obj_ids.shape[0] == valid.shape[0]) or masks.shape[1] != obj_ids.shape[1]:
         raise DataError(path, "masks", f"shapes disagree: masks {masks.shape}, obj_ids {obj_ids.shape}, valid_frames {valid.shape}")
     return Masks(masks.astype(np.uint8), obj_ids.astype(np.int32), valid.astype(bool))
-
-
-def read_json_file(path: Path) -> Any:
-    """The JSON value in `path`; DataError naming the file when it is missing or not readable JSON."""
-    try:
-        return json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise DataError(path, None, "file not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DataError(path, None, f"not a readable JSON file ({exc})") from None
-    except RecursionError:
-        raise DataError(path, None, "not a readable JSON file (nested too deeply)") from None
 
 
 def read_quality(path: Path) -> dict[str, float]:

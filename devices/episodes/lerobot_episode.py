@@ -26,11 +26,12 @@ import pyarrow.parquet as pq
 
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.episodes.episode_files import PressureFile, read_json_file, scalar_attrs
+from touchanything.devices.episodes.episode_files import PressureFile, scalar_attrs
 from touchanything.devices.episodes.episode_streams import HandStream, TrackerStream
 from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.errors import DataError, describe
 from touchanything.devices.hand_pose import hands_valid
+from touchanything.devices.json_files import read_json_file
 from touchanything.devices.snapshot import HANDS
 
 

@@ -27,6 +27,7 @@ from touchanything.devices.hardware.jq_protocol import JQStreamParser
 from touchanything.devices.hardware.opencv_camera import OpenCVCameraConfig, negotiated_format, request_format
 from touchanything.devices.hardware.openvr_trackers import INSTALL_HINT
 from touchanything.devices.quiet_stderr import quiet_opencv
+from touchanything.devices.snapshot import HANDS
 
 T = TypeVar("T")
 
@@ -197,7 +198,7 @@ def probe_serial_port(link: Path, listen_s: float = LISTEN_S) -> FoundSerialPort
     if listen_s <= 0:
         return FoundSerialPort(str(link), device, (), "not listened to")
     sides, problem = listen_for_gloves(str(link), listen_s)
-    heard = tuple(side for side in ("left", "right") if sides[side])
+    heard = tuple(side for side in HANDS if sides[side])
     if heard:
         rates = ", ".join(f"{side} {sides[side] / listen_s:.0f} samples/s" for side in heard)
         detail = f"JQ glove packets heard ({rates})"

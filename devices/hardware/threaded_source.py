@@ -257,11 +257,6 @@ class ThreadedSource(ABC, Generic[T]):
         retried, else None."""
         return self._down_reason
 
-    @property
-    def last_error(self) -> str | None:
-        """The last failed step ("OSError: ..."), or None."""
-        return self._last_error
-
     def status(self) -> str:
         """One line for a dashboard, e.g. "connected, 30.0 Hz, age 12 ms, 300 samples, 0 unread, 0 errors"."""
         if not self.is_connected:

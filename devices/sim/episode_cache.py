@@ -5,9 +5,9 @@ those episodes from the cache and simulates only the rest.
 An episode is a pure function of its `EpisodeSpec` (scene, length, seed, unseen object, trajectory id; episode i of a
 seed is the same whatever the number of episodes) and of the code that makes and writes it, so the key is the
 spec and the digest is the SHA-256 of the devices layer's sources (the simulator and the writers it uses): a
-change there never serves an episode that code would now make differently. Each entry holds the episode's folder (its files copied with their metadata)
-and its statistics (`stats.pkl`), written under a temporary name and renamed, so a killed writer leaves no
-entry that looks complete.
+change there never serves an episode that code would now make differently. Each entry holds the episode's
+folder (its files copied with their metadata) and its statistics (`stats.pkl`), written under a temporary name
+and renamed, so a killed writer leaves no entry that looks complete.
 """
 from __future__ import annotations
 

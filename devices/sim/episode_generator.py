@@ -19,13 +19,12 @@ from touchanything.devices.sim.hand_model import HandState
 from touchanything.devices.sim.pose_estimate import camera_from_wilor, estimate_joints, hidden_share, smooth_noise, wilor_joints
 from touchanything.devices.sim.renderer import Capsules, Lighting, Scene, render
 from touchanything.devices.sim.rig import quat_wxyz, rokoko_joints, tracker_poses
-from touchanything.devices.sim.script_base import SIDES
 from touchanything.devices.sim.shadows import cast_shadows
 from touchanything.devices.sim.shapes import FaceSet, Shape
 from touchanything.devices.sim.task_scripts import NEAR_MISSES, Planner
 from touchanything.devices.sim.touch import Glove, touch_frame
 from touchanything.devices.sim.world import make_object, object_timeline, static_faces
-from touchanything.devices.snapshot import FPS, VIEW_NAMES
+from touchanything.devices.snapshot import FPS, HANDS, VIEW_NAMES
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import TactileConfig
 
@@ -179,9 +178,9 @@ def generate_episode(root: Path, spec: EpisodeSpec, layout: TactileLayout | None
     stats.start_poses(motion.labels)
     with RawEpisodeWriter(folder, layout, config, crf=23) as writer:
         for k, t in enumerate(motion.times):
-            hands, pressure = touch_frame(objects, motion.object_poses[k], motion.hand_poses[k], motion.flexion[k], SIDES)
+            hands, pressure = touch_frame(objects, motion.object_poses[k], motion.hand_poses[k], motion.flexion[k], HANDS)
             sway = 0.01 * np.array([np.sin(0.9 * t), np.sin(0.6 * t + 1.0), 0.5 * np.sin(1.3 * t)])
-            cameras = [head_camera(head_base + sway, head_target)] + [wrist_camera(SIDES[h], motion.hand_poses[k, h]) for h in range(2)]
+            cameras = [head_camera(head_base + sway, head_target)] + [wrist_camera(HANDS[h], motion.hand_poses[k, h]) for h in range(2)]
             world = _scene(statics, objects, hands, sleeve, lighting)
             images = [render(camera, world) for camera in cameras]
             stats.record_frame(k, hands, pressure, cameras, objects, k % VISIBILITY_EVERY == 0)
@@ -205,7 +204,7 @@ def _estimate(k: int, stats: EpisodeStats, hands: list[HandState], motion: Scrip
     wilor, valid, world = [], [], []
     for h, hand in enumerate(hands):
         hidden = hidden_share(head, hand.joints, objects, hands[1 - h])
-        world.append(estimate_joints(SIDES[h], motion.hand_poses[k, h], motion.flexion[k, h], head, noise[h], hidden))
+        world.append(estimate_joints(HANDS[h], motion.hand_poses[k, h], motion.flexion[k, h], head, noise[h], hidden))
         valid.append(_pose_valid(head, hand.joints, rng))
         wilor.append(wilor_joints(head, world[-1], depth_scale, rng))
         stats.record_estimate(k, h, camera_from_wilor(wilor[-1].astype(np.float64), depth_scale), valid[-1], hidden)

@@ -9,9 +9,9 @@ import numpy as np
 
 from touchanything.devices.sim.cameras import Camera
 from touchanything.devices.sim.hand_model import HandState
-from touchanything.devices.sim.script_base import SIDES
 from touchanything.devices.sim.shapes import Shape
 from touchanything.devices.sim.visibility import visible
+from touchanything.devices.snapshot import HANDS
 
 CAMERAS = ("chest", "left", "right")
 """The cameras' names in `camera_matrix.txt` and the dataset card, in `VIEW_NAMES` order."""
@@ -60,7 +60,7 @@ class EpisodeStats:
         for h, hand in enumerate(hands):
             touching = (np.nan_to_num(pressure[h]) > CONTACT) & ~np.isnan(hand.cell_points[..., 0])
             self.touching[k, h] = touching.any()
-            entry = self.contact.setdefault(f"{SIDES[h]}/{self.labels[k, h]}", [0, 0])
+            entry = self.contact.setdefault(f"{HANDS[h]}/{self.labels[k, h]}", [0, 0])
             entry[0] += int(touching.any())
             entry[1] += 1
             self.poses[k, h] = cameras[0].to_camera(hand.joints)
@@ -68,7 +68,7 @@ class EpisodeStats:
                 continue
             points = hand.cell_points[touching]
             for name, camera in zip(CAMERAS, cameras):
-                entry = self.visible.setdefault(f"{name}/{SIDES[h]}", [0, 0])
+                entry = self.visible.setdefault(f"{name}/{HANDS[h]}", [0, 0])
                 entry[0] += int(visible(camera, points, objects, hands).sum())
                 entry[1] += len(points)
 

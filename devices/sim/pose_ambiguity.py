@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from touchanything.devices.sim.episode_stats import EpisodeStats
-from touchanything.devices.sim.script_base import SIDES
+from touchanything.devices.snapshot import HANDS
 
 SAMPLE_EVERY = 5
 APART = 15
@@ -57,7 +57,7 @@ def pose_statistics(results: list[EpisodeStats]) -> dict:
     tolerance = float(np.median(error))
     per_task: dict[str, list[int]] = {}
     total = [0, 0]
-    for h, side in enumerate(SIDES):
+    for h, side in enumerate(HANDS):
         free, free_keys, queries, query_keys, labels = [], [], [], [], []
         for e, stats in enumerate(results):
             frames = np.arange(stats.frames)

@@ -12,9 +12,8 @@ from touchanything.devices.sim.hand_model import FINGER_COLUMNS, FINGER_ORDER, P
 from touchanything.devices.sim.motion import HandTrack, frame_rotation
 from touchanything.devices.sim.shapes import Shape, pose_at
 from touchanything.devices.sim.touch import world_sdf
-from touchanything.devices.snapshot import FPS
+from touchanything.devices.snapshot import FPS, HANDS
 
-SIDES = ("left", "right")
 PALM_SURFACE = np.array([PALM_CENTRE[0], PALM_CENTRE[1], PALM_HALF[2]])
 REST_FLEX = np.array([0.2, 0.25, 0.25, 0.25, 0.25])
 OPEN_FLEX = np.array([0.05, 0.05, 0.05, 0.05, 0.05])
@@ -105,7 +104,7 @@ class ScriptBuilder:
 
             def touching(value: float) -> bool:
                 trial[finger] = value
-                return shape.sdf(_finger_points(hand_state(SIDES[hand], pose, trial), finger)).min() <= 0.0
+                return shape.sdf(_finger_points(hand_state(HANDS[hand], pose, trial), finger)).min() <= 0.0
 
             hits = [g for g in grid if touching(g)]
             if not hits:
@@ -132,7 +131,7 @@ class ScriptBuilder:
 
     def pad(self, hand: int, rotation: np.ndarray, flexion: np.ndarray, finger: str, row: int) -> np.ndarray:
         """World offset from the wrist to the middle cell of a finger's pad row, for a hand at the origin."""
-        state = hand_state(SIDES[hand], pose_at(np.zeros(3), rotation), flexion)
+        state = hand_state(HANDS[hand], pose_at(np.zeros(3), rotation), flexion)
         col = FINGER_COLUMNS[finger] + 1
         return state.cell_points[row, col if hand == 0 else 20 - col]
 
@@ -140,7 +139,7 @@ class ScriptBuilder:
                   table: bool = True) -> float:
         """The smallest distance (metres) from the hand's joints and tactile points to the objects (or only
         `shapes`) and, with `table`, the table top."""
-        points = hand_points(hand_state(SIDES[hand], pose_at(position, rotation), flexion))
+        points = hand_points(hand_state(HANDS[hand], pose_at(position, rotation), flexion))
         shapes = self.objects if shapes is None else shapes
         if table:
             return float(world_sdf(points, shapes).min())
@@ -163,7 +162,7 @@ class ScriptBuilder:
         lo, hi = 0.0, 0.3
         while hi - lo > 0.001:
             mid = (lo + hi) / 2
-            state = hand_state(SIDES[hand], pose_at(position + mid * direction, rotation), flexion)
+            state = hand_state(HANDS[hand], pose_at(position + mid * direction, rotation), flexion)
             cells = state.cell_points[~np.isnan(state.cell_points[..., 0])]
             lo, hi = (lo, mid) if world_sdf(cells, self.objects).min() <= 0.0 else (mid, hi)
         return position + hi * direction
@@ -193,7 +192,7 @@ class ScriptBuilder:
         objects where they are now."""
         positions, rotations, flexion = self.script.tracks[hand].sample(np.arange(start, end, 1.0 / FPS))
         for position, rotation, flex in zip(positions, rotations, flexion):
-            state = hand_state(SIDES[hand], pose_at(position, rotation), flex)
+            state = hand_state(HANDS[hand], pose_at(position, rotation), flex)
             if world_sdf(state.cell_points[~np.isnan(state.cell_points[..., 0])], self.objects).min() <= 0.0:
                 return True
         return False

@@ -11,10 +11,11 @@ from touchanything.devices.sim.cameras import wrist_camera
 from touchanything.devices.sim.catalogue import AIR_PUSH, HOVER, HOVER_PRESS, PRESS, PUSH, REST, REST_HOVER, SLIDE
 from touchanything.devices.sim.hand_model import hand_state
 from touchanything.devices.sim.motion import frame_rotation
-from touchanything.devices.sim.script_base import CLEARANCE, POINT_FLEX, SIDES, UP, ScriptBuilder, hand_points
+from touchanything.devices.sim.script_base import CLEARANCE, POINT_FLEX, UP, ScriptBuilder, hand_points
 from touchanything.devices.sim.shapes import pose_at
 from touchanything.devices.sim.touch import world_sdf
 from touchanything.devices.sim.world import TABLE_Y
+from touchanything.devices.snapshot import HANDS
 
 HOVER_GAP = (0.01, 0.03)
 """A hovering fingertip stays this far (metres) above the surface at its lowest."""
@@ -134,7 +135,7 @@ class SurfaceActions(ScriptBuilder):
 
     def _camera_clear(self, hand: int, position: np.ndarray, rotation: np.ndarray) -> bool:
         """Whether the wrist camera of a hand at this pose is at least `CLEARANCE` outside every surface."""
-        centre = wrist_camera(SIDES[hand], pose_at(position, rotation)).centre
+        centre = wrist_camera(HANDS[hand], pose_at(position, rotation)).centre
         return bool(world_sdf(centre[None], self.objects)[0] >= CLEARANCE)
 
     def push(self, hand: int, t: float, obj: int, variant: str = PUSH) -> float:
@@ -171,7 +172,7 @@ class SurfaceActions(ScriptBuilder):
 
     def _lowest(self, hand: int, rotation: np.ndarray, flex: np.ndarray) -> np.ndarray:
         """The lowest joint or tactile point of a hand posed at the origin."""
-        points = hand_points(hand_state(SIDES[hand], pose_at(np.zeros(3), rotation), flex))
+        points = hand_points(hand_state(HANDS[hand], pose_at(np.zeros(3), rotation), flex))
         return points[np.argmin(points[:, 2])]
 
     def _push_length(self, hand: int, obj: int, contact: np.ndarray, rotation: np.ndarray, flex: np.ndarray) -> float:

@@ -14,6 +14,7 @@ import numpy as np
 
 from touchanything.devices.sim.hand_model import HandState, hand_state
 from touchanything.devices.sim.shapes import Shape, inverse, transform
+from touchanything.devices.snapshot import HANDS
 from touchanything.devices.tactile_layout import TactileLayout
 
 DEPTH_SCALE = 0.005
@@ -50,7 +51,7 @@ def compress_soft(shapes: list[Shape], hands: list[HandState]) -> None:
 
 
 def touch_frame(objects: list[Shape], object_poses: np.ndarray, hand_poses: np.ndarray, flexion: np.ndarray,
-                sides: tuple[str, str] = ("left", "right")) -> tuple[list[HandState], np.ndarray]:
+                sides: tuple[str, str] = HANDS) -> tuple[list[HandState], np.ndarray]:
     """One frame of the world: the objects moved to `object_poses` (S, 4, 4), the hands posed (wrists (2, 4, 4),
     `flexion` (2, 5)), soft objects compressed; returns the two hands and their (2, 21, 21) pressure."""
     for shape, pose in zip(objects, object_poses):

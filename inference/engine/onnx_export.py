@@ -28,12 +28,12 @@ from pathlib import Path
 
 import torch
 
+from touchanything.devices.hand_pose import JOINTS_PER_HAND
 from touchanything.devices.output_safety import replacing
 from touchanything.inference.engine.frame_encoder import bake_position_embedding
 from touchanything.inference.engine.model_halves import model_halves
 from touchanything.inference.engine.onnx_export_folder import check_export_folder, export_files, export_names, remove_stale
 from touchanything.inference.engine.onnx_manifest import MANIFEST, WEIGHTS_KEY
-from touchanything.inference.engine.window_head import JOINTS_PER_HAND
 from touchanything.inference.model.model_config import config_to_dict
 from touchanything.inference.model.models import TactileModel
 

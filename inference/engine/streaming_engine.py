@@ -14,21 +14,20 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.devices.hand_pose import JOINTS_PER_HAND
+from touchanything.devices.snapshot import HANDS, VIEW_NAMES, Snapshot
 from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.engine.engine_runtime import Runtime, make_runtime
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.frame_ring import CachedFrame, FrameRing, Window
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.engine.stitching import StitchAccumulator
-from touchanything.inference.engine.window_head import JOINTS_PER_HAND
 from touchanything.inference.model.model_config import CLIP_LENGTH
 from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.pose_encoder import prepare_poses, usable_hands
 from touchanything.inference.model.preprocess import blank_frames
 
 CENTRE = CLIP_LENGTH // 2
-HAND_NAMES = ("left", "right")
 
 
 def _ms(start: float) -> float:
@@ -138,7 +137,7 @@ class StreamingEngine:
 
     def _prediction(self, frame: CachedFrame, pressure: np.ndarray, hands: np.ndarray, timings: dict,
                     exact: bool) -> Prediction:
-        missing = [HAND_NAMES[h] for h in (0, 1) if not hands[h]]
+        missing = [HANDS[h] for h in (0, 1) if not hands[h]]
         status = "ok" if not missing else ("no valid hand pose" if len(missing) == 2 else f"{missing[0]} hand: no pose")
         prediction = Prediction(frame_index=frame.frame_index, t_us=frame.t_us, pressure=pressure + self.mask,
                                 hands_predicted=(bool(hands[0]), bool(hands[1])), views_used=frame.views,

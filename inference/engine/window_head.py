@@ -12,11 +12,10 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from touchanything.devices.hand_pose import JOINTS_PER_HAND
 from touchanything.inference.model.tactile_decoder import MlpTactileDecoder
 from touchanything.inference.model.temporal import DividedSpaceTimeLayer
 from touchanything.inference.model.touch_model import TouchAnything
-
-JOINTS_PER_HAND = 21
 
 
 def time_mixing_at(layer: DividedSpaceTimeLayer, x: torch.Tensor, positions: torch.Tensor) -> torch.Tensor:

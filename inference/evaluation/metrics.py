@@ -33,6 +33,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from touchanything.devices.snapshot import HANDS
+
 CONTACT_THRESHOLD = 0.1
 MIN_CONTACT_RATIO = 0.05
 EVENT_TOLERANCE = 2
@@ -160,7 +162,7 @@ class MetricAccumulator:
         s["vol_min"] += float(np.minimum(p, g).sum(dtype=np.float64))
         s["vol_max"] += float(np.maximum(p, g).sum(dtype=np.float64))
         error = np.abs(p - g)
-        for h, hand in enumerate(("left", "right")):
+        for h, hand in enumerate(HANDS):
             s[f"abs_{hand}"] += float(error[:, h].sum(dtype=np.float64))
             s[f"cells_{hand}"] += int(np.count_nonzero(valid[:, h]))
 

@@ -5,6 +5,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from touchanything.devices.hand_pose import JOINTS_PER_HAND
 from touchanything.inference.model.multi_view import encoder_layers
 
 INVALID_JOINT = -10.0
@@ -32,7 +33,6 @@ def prepare_poses(joints: np.ndarray, valid: np.ndarray) -> np.ndarray:
 
 
 FEATURE_LIMIT = 6.0
-JOINTS_PER_HAND = 21
 
 
 def hand_features(joints: torch.Tensor) -> torch.Tensor:
@@ -61,6 +61,19 @@ def hand_statistics(poses: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, int]
         return None
     features = hand_features(hands).reshape(-1, 6).double()
     return features.mean(dim=0).float(), features.std(dim=0).nan_to_num(1.0).clamp(min=1e-3).float(), len(hands)
+
+
+@torch.no_grad()
+def set_hand_statistics(offset: torch.Tensor, scale: torch.Tensor, poses: np.ndarray) -> int:
+    """Copy `hand_statistics` of the prepared poses (N, 42, 3) into the (6,) buffers `offset` (mean) and `scale`
+    (standard deviation). Returns how many valid hands were used (0: the buffers are left unchanged)."""
+    stats = hand_statistics(poses)
+    if stats is None:
+        return 0
+    mean, std, count = stats
+    offset.copy_(mean)
+    scale.copy_(std)
+    return count
 
 
 class TransformerPoseEncoder(nn.Module):
@@ -94,17 +107,10 @@ class TransformerPoseEncoder(nn.Module):
             return (joints - self.pose_offset) / self.pose_scale
         return standardised_hand_features(joints, self.pose_offset, self.pose_scale)
 
-    @torch.no_grad()
     def set_statistics(self, poses: np.ndarray) -> int:
         """`hand` input: set `pose_offset`/`pose_scale` from the valid hands of `poses` (N, 42, 3) prepared
-        (`hand_statistics`). Returns how many hands were used (0: nothing changes)."""
-        stats = hand_statistics(poses) if self.inputs == "hand" else None
-        if stats is None:
-            return 0
-        mean, std, count = stats
-        self.pose_offset.copy_(mean)
-        self.pose_scale.copy_(std)
-        return count
+        (`set_hand_statistics`). Returns how many hands were used (0: nothing changes; always 0 for `camera`)."""
+        return set_hand_statistics(self.pose_offset, self.pose_scale, poses) if self.inputs == "hand" else 0
 
     def encode(self, joints: torch.Tensor, joint_ids: torch.Tensor | slice = slice(None)) -> torch.Tensor:
         """(N, J, 3) → (N, J, D) for the joints `joint_ids` (whole hands) of the 42."""

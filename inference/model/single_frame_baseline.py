@@ -15,10 +15,11 @@ import numpy as np
 import torch
 from torch import nn
 
+from touchanything.devices.hand_pose import JOINTS_PER_HAND
 from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.inference.model.model_config import TACTILE_SIZE, ModelConfig
 from touchanything.inference.model.multi_view import view_slots
-from touchanything.inference.model.pose_encoder import JOINTS_PER_HAND, hand_statistics, standardised_hand_features
+from touchanything.inference.model.pose_encoder import set_hand_statistics, standardised_hand_features
 from touchanything.inference.model.vision_encoder import VisionEncoder
 
 CELLS = TACTILE_SIZE * TACTILE_SIZE
@@ -53,16 +54,10 @@ class SingleFrameBaseline(nn.Module):
         """(N, D) of the per-frame half's output: one token holding the three view slots."""
         return 1, len(VIEW_NAMES) * self.config.embed_dim
 
-    @torch.no_grad()
     def set_pose_statistics(self, poses: np.ndarray) -> int:
-        """Standardise the pose input by the valid hands of `poses` (N, 42, 3) prepared; returns their number."""
-        stats = hand_statistics(poses)
-        if stats is None:
-            return 0
-        mean, std, count = stats
-        self.pose_offset.copy_(mean)
-        self.pose_scale.copy_(std)
-        return count
+        """Standardise the pose input by the valid hands of `poses` (N, 42, 3) prepared (`set_hand_statistics`);
+        returns their number."""
+        return set_hand_statistics(self.pose_offset, self.pose_scale, poses)
 
     def kept_views(self, views: dict) -> list[str]:
         order = [v for v in VIEW_NAMES if v in views]

@@ -9,8 +9,9 @@ import numpy as np
 
 from touchanything.devices.hardware.rokoko_protocol import HAND_JOINT_NAMES
 from touchanything.devices.sim.hand_model import hand_state
-from touchanything.devices.sim.script_base import PALM_DOWN, REST_FLEX, SIDES
+from touchanything.devices.sim.script_base import PALM_DOWN, REST_FLEX
 from touchanything.devices.sim.shapes import pose_at
+from touchanything.devices.snapshot import HANDS
 
 BODY_JOINTS = (
     "hip", "spine", "chest", "neck", "head",
@@ -27,7 +28,7 @@ DEADLINE_S = 10.0
 def studio_hands() -> np.ndarray:
     """(2, 21, 3) float64 hands of the simulator's kinematic model in Studio coordinates (Y up, Z forward)."""
     hands = [hand_state(side, pose_at(np.array([0.18 * (2 * h - 1), 0.25, 1.05]), PALM_DOWN), REST_FLEX)
-             for h, side in enumerate(SIDES)]
+             for h, side in enumerate(HANDS)]
     return np.stack([hand.joints[:, [0, 2, 1]] for hand in hands])
 
 
