@@ -194,7 +194,8 @@ SERIAL_MODULES = frozenset({
     "test_device_contract", "test_devices_command", "test_display", "test_engine_runtimes", "test_gpu_path",
     "test_hand_estimator", "test_interrupted_outputs", "test_jq_glove", "test_live_engine", "test_live_rig",
     "test_onnx_export_folder", "test_output_safety", "test_reconnect", "test_recorder", "test_recorder_fsync",
-    "test_replay", "test_rerun", "test_rerun_serving", "test_rig_clock", "test_rokoko_udp", "test_soak", "test_trackers"})
+    "test_replay", "test_rerun", "test_rerun_served", "test_rerun_serving", "test_rig_clock", "test_rokoko_udp",
+    "test_soak", "test_trackers"})
 """Modules whose tests measure time (rates, latencies, deadlines) or hold a machine resource one test at a time (the
 simulated rig's UDP ports and ptys, an X display), or export ONNX graphs in a low-priority child process (a busy
 worker beside it starves it): `make test` runs them one by one after the others, which run in parallel worker

@@ -95,13 +95,14 @@ def test_the_comparison_frame_puts_the_spread_beside_the_predicted_maps():
     single = comparison_frame({}, measured, predicted, "footer")
     ensemble = comparison_frame({}, measured, predicted, "footer", spread=spread)
     assert single.shape == ensemble.shape
-    expected = [pressure_panel(measured, MAP_TITLES["measured"], 360, PANEL_HEIGHT, empty="no glove"),
-                pressure_panel(predicted, MAP_TITLES["predicted"], 360, PANEL_HEIGHT, empty="no pose"),
+    bend = TactileLayout.default().bend  # bend cells drawn as such on the pressure panels, not on the spread
+    expected = [pressure_panel(measured, MAP_TITLES["measured"], 360, PANEL_HEIGHT, empty="no glove", bend=bend),
+                pressure_panel(predicted, MAP_TITLES["predicted"], 360, PANEL_HEIGHT, empty="no pose", bend=bend),
                 pressure_panel(spread, SPREAD_TITLE, 360, PANEL_HEIGHT, empty="no pose", high=SPREAD_HIGH),
-                pressure_panel(predicted - measured, MAP_TITLES["error"], 360, PANEL_HEIGHT, error=True)]
+                pressure_panel(predicted - measured, MAP_TITLES["error"], 360, PANEL_HEIGHT, error=True, bend=bend)]
     np.testing.assert_array_equal(ensemble[PANELS], np.concatenate(expected, axis=1))
-    np.testing.assert_array_equal(single[PANELS, :480],
-                                  pressure_panel(measured, MAP_TITLES["measured"], 480, PANEL_HEIGHT, empty="no glove"))
+    np.testing.assert_array_equal(single[PANELS, :480], pressure_panel(measured, MAP_TITLES["measured"], 480, PANEL_HEIGHT,
+                                                                       empty="no glove", bend=bend))
 
 
 def test_a_replayed_ensemble_shows_its_spread_in_the_video_and_the_recording(episode_dir, tmp_path):

@@ -14,6 +14,7 @@ from rerun.blueprint.api import Container
 from test_layout import module_files
 from touchanything.app.cli import main
 from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.view_sets import VIEW_IDS, VIEW_LABELS, parse_view_set, view_set_name
 from touchanything.viz.comparison_video import CAMERA_HEIGHT, PANEL_HEIGHT, comparison_frame
 from touchanything.viz.pressure_panel import MAP_TITLES, pressure_panel, put_text
@@ -60,9 +61,13 @@ def test_the_comparison_video_draws_the_vocabulary():
         put_text(tile, VIEW_LABELS[view], (8, 22), 0.6)
         assert np.array_equal(frame[:CAMERA_HEIGHT, 480 * k:480 * (k + 1)], tile), view
     panels = frame[CAMERA_HEIGHT:CAMERA_HEIGHT + PANEL_HEIGHT]
-    assert np.array_equal(panels[:, :480], pressure_panel(grids, MAP_TITLES["measured"], 480, PANEL_HEIGHT, empty="no glove"))
-    assert np.array_equal(panels[:, 480:960], pressure_panel(grids, MAP_TITLES["predicted"], 480, PANEL_HEIGHT, empty="no pose"))
-    assert np.array_equal(panels[:, 960:], pressure_panel(grids - grids, MAP_TITLES["error"], 480, PANEL_HEIGHT, error=True))
+    bend = TactileLayout.default().bend  # the video draws bend cells as such
+    assert np.array_equal(panels[:, :480], pressure_panel(grids, MAP_TITLES["measured"], 480, PANEL_HEIGHT, empty="no glove",
+                                                          bend=bend))
+    assert np.array_equal(panels[:, 480:960], pressure_panel(grids, MAP_TITLES["predicted"], 480, PANEL_HEIGHT,
+                                                             empty="no pose", bend=bend))
+    assert np.array_equal(panels[:, 960:], pressure_panel(grids - grids, MAP_TITLES["error"], 480, PANEL_HEIGHT, error=True,
+                                                          bend=bend))
 
 
 def test_info_prints_the_view_set_id_and_the_labels(episode_dir, capsys):
