@@ -122,6 +122,17 @@ def run_driven(dashboard: Dashboard, drive):
     return stats
 
 
+def drive_in_dashboard(path: Path, choice: ModelChoice, drive) -> dict:
+    """Replay `path` with `choice` in the dashboard while `drive(session, dashboard, found)` acts on it from another
+    thread (and closes it); what it put into `found`. Run it with `in_fresh_process`."""
+    found: dict = {}
+    with open_episode(path) as episode:
+        session = ReplaySession(episode, build_engine(choice), choice).start()
+        dashboard = Dashboard(session)
+        run_driven(dashboard, lambda: drive(session, dashboard, found))
+    return found
+
+
 def drive_controls(session: ReplaySession, dashboard: Dashboard, errors: list[str]) -> None:
     try:
         wait_for(lambda: session.state().prediction is not None, "a first prediction")

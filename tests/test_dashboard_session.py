@@ -4,15 +4,13 @@ demo loops, a replay's Record button says why it records nothing, and the source
 apart. Each dashboard runs in a fresh process (one per process, as for a user)."""
 from __future__ import annotations
 
-import threading
 import time
 from pathlib import Path
 
 import dearpygui.dearpygui as dpg
 
-from test_dashboard import NANO, in_fresh_process, wait_for
+from test_dashboard import NANO, drive_in_dashboard, in_fresh_process, wait_for
 from touchanything.app.sessions.bundled import sample_episodes
-from touchanything.app.sessions.engine_choice import build_engine
 from touchanything.app.sessions.replay_runs import replay_in_dashboard
 from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.devices.episodes.episode_loader import open_episode
@@ -77,20 +75,8 @@ def drive(session: ReplaySession, dashboard: Dashboard, found: dict) -> None:
         dashboard.close()
 
 
-def driven_replay() -> dict:
-    found: dict = {}
-    with open_episode(sample_episodes()[0]) as episode:
-        session = ReplaySession(episode, build_engine(NANO), NANO).start()
-        dashboard = Dashboard(session)
-        thread = threading.Thread(target=drive, args=(session, dashboard, found), daemon=True)
-        thread.start()
-        dashboard.run()
-        thread.join(5)
-    return found
-
-
 def test_the_dashboard_idles_when_paused_and_a_paused_seek_shows_the_frame_everywhere(dashboard_display):
-    found = in_fresh_process(driven_replay)
+    found = in_fresh_process(drive_in_dashboard, sample_episodes()[0], NANO, drive)
     assert "error" not in found, found
     print(f"render rate playing {found['playing fps']:.1f} fps, paused {found['paused fps']:.1f} fps "
           f"(process CPU {100 * found['paused cpu']:.0f} % of a core)")

@@ -4,18 +4,15 @@ titled so; with a single model it is disabled, says why, and the map stays the p
 replay of the conftest episode (40 frames) per dashboard, each in a fresh process."""
 from __future__ import annotations
 
-import threading
 import time
-from pathlib import Path
 
 import dearpygui.dearpygui as dpg
 import numpy as np
 
-from test_dashboard import in_fresh_process, wait_for
+from test_dashboard import drive_in_dashboard, in_fresh_process, wait_for
 from test_ensemble import PICO, ensemble_folder, perturbed_pico
-from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, choose
+from touchanything.app.sessions.engine_choice import choose
 from touchanything.app.sessions.replay_session import ReplaySession
-from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.viz.colormap import PRESSURE_LUT, apply
 from touchanything.viz.dashboard.dashboard import CELL, Dashboard
 from touchanything.viz.pressure_panel import AXES, MAP_GAP, MAP_TITLES, SPREAD_HIGH, SPREAD_TITLE, unposed_as_nan
@@ -48,18 +45,6 @@ def drive(session: ReplaySession, dashboard: Dashboard, found: dict) -> None:
         dashboard.close()
 
 
-def driven(episode_dir: Path, choice: ModelChoice) -> dict:
-    found: dict = {}
-    with open_episode(episode_dir) as episode:
-        session = ReplaySession(episode, build_engine(choice), choice).start()
-        dashboard = Dashboard(session)
-        thread = threading.Thread(target=drive, args=(session, dashboard, found), daemon=True)
-        thread.start()
-        dashboard.run()
-        thread.join(5)
-    return found
-
-
 def cell_colours(image: np.ndarray, hand: int) -> np.ndarray:
     """(21, 21, 3): the colour at the centre of each cell of one hand's map."""
     centres = np.arange(21) * CELL + CELL // 2
@@ -68,7 +53,8 @@ def cell_colours(image: np.ndarray, hand: int) -> np.ndarray:
 
 def test_the_spread_toggle_shows_the_shown_predictions_spread(dashboard_display, episode_dir, tmp_path):
     member = perturbed_pico(tmp_path / "member")
-    found = in_fresh_process(driven, episode_dir, choose(ensemble_folder(tmp_path, [member]), members=2, device="cpu"))
+    ensemble = choose(ensemble_folder(tmp_path, [member]), members=2, device="cpu")
+    found = in_fresh_process(drive_in_dashboard, episode_dir, ensemble, drive)
     assert "error" not in found, found["error"]
     assert found["enabled"] and found["tip"].startswith("show the members' spread"), found["tip"]
     assert found["same record"]
@@ -83,7 +69,7 @@ def test_the_spread_toggle_shows_the_shown_predictions_spread(dashboard_display,
 
 
 def test_with_one_model_the_spread_toggle_is_disabled(dashboard_display, episode_dir):
-    found = in_fresh_process(driven, episode_dir, choose(PICO / "best_model.pth", device="cpu"))
+    found = in_fresh_process(drive_in_dashboard, episode_dir, choose(PICO / "best_model.pth", device="cpu"), drive)
     assert "error" not in found, found["error"]
     assert not found["enabled"] and found["tip"] == "one model: no spread"
     assert found["prediction"].spread is None
