@@ -22,6 +22,9 @@
 # created .venv); about 4 h on the 2-core CPU machine (simulation ~20 frames/s with --workers 2) (docs/performance.md, "Simulation").
 set -euo pipefail
 TA=.venv/bin/touchanything
+# The episodes simulated so far live beside the datasets (devices/sim/episode_cache.py): a run stopped halfway —
+# a session that ends — and run again on this checkout copies them instead of simulating them again.
+export XDG_CACHE_HOME="$PWD/data/.cache"
 simulate() {  # simulate NAME EPISODES SEED
   [ -d "data/$1" ] || $TA simulate "data/$1" --episodes "$2" --seconds 10 --seed "$3" --workers 2
   [ -d "data/$1_h5" ] || $TA convert "data/$1" "data/$1_h5" --workers 2 --compression-level 1
