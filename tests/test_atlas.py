@@ -143,7 +143,7 @@ def test_bench_budget_bad_inputs_are_one_line_and_write_nothing(atlas, tmp_path,
     for argv, message in cases:
         code, _, err = run_main(["bench", *argv], capsys)
         assert code == 2 and message in err, (argv, err)
-        said = [line for line in err.strip().splitlines() if not line.startswith("exporting the ONNX graphs")]
+        said = [line for line in err.strip().splitlines() if line.strip() and not line.startswith("exporting the ONNX graphs")]
         assert len(said) == 1 and "Traceback" not in err  # a probe's first ONNX use says its export's progress
     assert not (tmp_path / "recordings").exists()
 
