@@ -8,9 +8,12 @@ from __future__ import annotations
 
 import json
 import math
+from typing import TYPE_CHECKING
 
-from touchanything.inference.evaluation.evaluation import EvaluationResult, vision_share_summary
 from touchanything.inference.evaluation.metrics import DETECTION_METRICS, EVENT_METRICS, METRICS
+
+if TYPE_CHECKING:  # evaluation imports torch: the command line's --help loads this module
+    from touchanything.inference.evaluation.evaluation import EvaluationResult
 
 RESULT_FILES = ("results.json", "results.md")
 TIMING_COLUMNS = DETECTION_METRICS[:3] + EVENT_METRICS[:4]
@@ -24,6 +27,13 @@ def _cell(value: float) -> str:
 
 def _rows(label: str, summary: dict[str, dict[str, float]], keys: tuple[str, ...]) -> list[str]:
     return [f"| {label} | {scene} | " + " | ".join(_cell(metrics[k]) for k in keys) + " |" for scene, metrics in summary.items()]
+
+
+def _shares(real: EvaluationResult, blank: EvaluationResult, mode: str) -> dict[str, dict[str, float]]:
+    """`evaluation.vision_share_summary`, imported where used (it loads torch)."""
+    from touchanything.inference.evaluation.evaluation import vision_share_summary
+
+    return vision_share_summary(real, blank, mode)
 
 
 def _table(results: list[EvaluationResult], mode: str, keys: tuple[str, ...]) -> list[str]:
@@ -50,7 +60,7 @@ def _share_table(results: list[EvaluationResult], mode: str) -> list[str]:
     lines = [f"### {mode}: share carried by vision (real − pose only) / max(real, pose only); MAE reversed", "",
              "| views | scene | " + " | ".join(keys) + " |", "|---|---|" + "---|" * len(keys)]
     for real, blank in pairs:
-        lines += _rows(real.views, vision_share_summary(real, blank, mode), keys)
+        lines += _rows(real.views, _shares(real, blank, mode), keys)
     return lines + [""]
 
 
@@ -79,7 +89,7 @@ def result_record(result: EvaluationResult, results: list[EvaluationResult]) -> 
               "causal": result.summary("causal")}
     real = next((r for r, b in baseline_pairs(results) if b is result), None)
     if real is not None:
-        record["vision_share"] = {mode: vision_share_summary(real, result, mode) for mode in MODES}
+        record["vision_share"] = {mode: _shares(real, result, mode) for mode in MODES}
     return {**record, "trajectories": result.rows, "failed": result.failures}
 
 
