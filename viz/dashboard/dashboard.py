@@ -29,15 +29,14 @@ import numpy as np
 from touchanything.devices.errors import UserError
 from touchanything.devices.output_safety import replacing
 from touchanything.devices.rate_meter import RateMeter
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.inference.engine.prediction import Prediction
+from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.dashboard.atlas_panel import AtlasPanel
 from touchanything.viz.dashboard.dashboard_controls import Tables, build_controls, build_tables
 from touchanything.viz.dashboard.dashboard_drawn import ContactLamps, HistoryPlots
 from touchanything.viz.dashboard.dashboard_panels import blank, camera_panel, pressure_views
 from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState
+from touchanything.viz.dashboard.shown_frame import ShownFrame
 from touchanything.viz.display import display_problem
-from touchanything.viz.frame_facts import FrameFacts
 from touchanything.viz.pressure_panel import HAND_LABELS, MAP_GAP, MAP_TITLES, maps_width, unposed_as_nan
 from touchanything.viz.textures import TextureSlot
 
@@ -85,32 +84,6 @@ class DashboardConfig:
     height: int = 720
     title: str = "TouchAnything Live"
     screenshot_dir: Path = Path("recordings") / "screenshots"
-
-
-@dataclass(frozen=True)
-class ShownFrame:
-    """What every panel of a drawn frame comes from: the session's published snapshot and prediction (with the
-    prediction's truth and facts), the views the model uses, the running engine's ensemble members and the
-    display settings the maps are drawn with (contact threshold, outline, spread). The dashboard replaces it in
-    one step."""
-
-    snapshot: Snapshot | None = None
-    prediction: Prediction | None = None
-    truth: np.ndarray | None = None
-    facts: FrameFacts | None = None
-    views_used: tuple[str, ...] = ()
-    members: int = 1
-    settings: tuple[float, bool, bool] = (0.0, False, False)
-
-    def new_cameras(self, shown: ShownFrame) -> bool:
-        """The camera images differ from `shown`'s: another snapshot or other views used."""
-        return self.snapshot is not shown.snapshot or self.views_used != shown.views_used
-
-    def new_maps(self, shown: ShownFrame) -> bool:
-        """What the prediction decides (maps, titles, lamps, metrics, legends, the head camera's discs) differs
-        from `shown`'s: another prediction, truth or facts, or other settings."""
-        return (self.prediction is not shown.prediction or self.truth is not shown.truth
-                or self.facts is not shown.facts or (self.members, self.settings) != (shown.members, shown.settings))
 
 
 @dataclass
