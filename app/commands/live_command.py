@@ -6,8 +6,12 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from touchanything.app.sessions.scene import Scene
 
 from touchanything.app.sessions.engine_choice import add_device_argument, add_onnx_argument
 from touchanything.app.sessions.rerun_output import (
@@ -38,20 +42,20 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def open_live_session(scene_path: Path, device: str | None = None, picked: PickedSetting | None = None,
+def open_live_session(scene: Scene | Path, device: str | None = None, picked: PickedSetting | None = None,
                       onnx: Path | None = None):
-    """The scene's rig and model as a LiveSession (not started), the model on `device` when given (else the
+    """The scene's (a Scene, or a scene file to read) rig and model as a LiveSession (not started), the model on `device` when given (else the
     scene's), the `picked` setting's model, tier and views, or the `onnx` export (`export_choice`), instead of
     the scene's when given; a model that fails to load leaves the session without predictions, with the reason
     in its message (a folder that is no export is a UserError)."""
     from touchanything.app.sessions.engine_choice import build_engine, export_choice
     from touchanything.app.sessions.live_session import LiveSession
-    from touchanything.app.sessions.scene import read_scene
+    from touchanything.app.sessions.scene import Scene, read_scene
     from touchanything.app.sessions.scene_rig import LiveRig
     from touchanything.devices.errors import UserError
     from touchanything.devices.snapshot import VIEW_NAMES
 
-    scene = read_scene(scene_path)
+    scene = scene if isinstance(scene, Scene) else read_scene(scene)
     choice = scene.model if device is None else scene.model.with_setting(device=device)
     if picked is not None:
         choice = picked.model_choice(choice.setting.device)
@@ -105,6 +109,7 @@ def run_headless(session, seconds: float) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    from touchanything.app.sessions.scene import read_scene
     from touchanything.app.sessions.rerun_sink import RerunSink, seconds_since_first
     from touchanything.viz.dashboard.dashboard import Dashboard
     from touchanything.viz.display import display_problem
@@ -117,9 +122,10 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"cannot open the dashboard: {problem}; use --headless")
     request = setting_request(args)
     target = rerun_target(args, (args.scene, args.onnx, *(request.inputs if request else ())), LIVE_IMAGE_SCALE)
+    scene = read_scene(args.scene)
     print(f"starting  the rig of {args.scene} and loading the model (devices connect, the model loads: seconds)…",
           flush=True)
-    session = open_live_session(args.scene, args.device, picked_setting(request, args.device), args.onnx)
+    session = open_live_session(scene, args.device, picked_setting(request, args.device), args.onnx)
     session.use_atlas(args.atlas)
     engine = session.live and session.live.engine
     recording = target and open_recording(target, f"live {args.scene.stem}", session_properties(session.choice, engine))

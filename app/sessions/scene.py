@@ -36,6 +36,7 @@ from typing import Any
 from touchanything.app.sessions.engine_choice import ModelChoice, choose, default_checkpoint, export_choice
 from touchanything.app.sessions.scene_values import check_types
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig
+from touchanything.devices.camera_pose.model_file import read_model
 from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.jq_glove import JQGloveConfig
 from touchanything.devices.hardware.openvr_trackers import OpenVRTrackersConfig
@@ -75,7 +76,8 @@ class Scene:
 
 
 def read_scene(path: Path) -> Scene:
-    """Parse and check a scene file; every problem is one UserError naming the file and the key."""
+    """Parse and check a scene file; every problem is one UserError naming the file and the key (a camera-pose
+    scene's hand model file: naming that file)."""
     path = Path(path)
     try:
         table = tomllib.loads(path.read_text())
@@ -105,9 +107,11 @@ def read_scene(path: Path) -> Scene:
             recording=_recording(table.get("recording", {})))
         if isinstance(scene.hands, CameraPoseConfig) and "ego" not in scene.cameras:
             raise UserError('[hands] source = "camera" estimates the hands from the ego camera: add [cameras.ego]')
-        return scene
     except UserError as exc:
         raise UserError(f"{path}: {exc}") from None
+    if isinstance(scene.hands, CameraPoseConfig):
+        read_model(scene.hands.model)  # a missing or changed hand model is refused before any device starts
+    return scene
 
 
 def scene_inputs(scene: Scene) -> list[Path]:
