@@ -25,7 +25,7 @@ from touchanything.app.commands import (
     train_command,
 )
 from touchanything.app.interruptions import stoppable
-from touchanything.devices.errors import Terminated, UserError
+from touchanything.core.errors import Terminated, UserError
 
 COMMANDS = (demo_command, info_command, simulate_command, convert_command, split_command, grids_command, train_command,
             eval_command, replay_command, pose_command, live_command, record_command, devices_command, export_onnx_command,

@@ -1,5 +1,5 @@
 """How a command stops when asked to: Ctrl-C (SIGINT) raises KeyboardInterrupt and SIGTERM raises `Terminated` in the
-main thread, so that every output being written is removed on the way out (`devices.output_safety`).
+main thread, so that every output being written is removed on the way out (`core.output_safety`).
 
 Python runs a signal's handler between two steps of whatever the main thread executes — also inside a weak
 reference's callback or a finaliser, where an exception cannot propagate and is swallowed ("Exception ignored
@@ -17,7 +17,7 @@ import sys
 import threading
 from collections.abc import Iterator
 
-from touchanything.devices.errors import Terminated
+from touchanything.core.errors import Terminated
 
 RAISED = {signal.SIGINT: KeyboardInterrupt, signal.SIGTERM: Terminated}
 AGAIN_AFTER_S = 0.005

@@ -23,11 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.app.sessions.bundled import SAMPLE_DIR, sample_episodes
-from touchanything.devices import output_safety
+from touchanything.core import output_safety
+from touchanything.core.output_safety import replacing, write_text
 from touchanything.devices.episodes.dataset_conversion import convert_dataset
 from touchanything.devices.episodes.episode_files import read_pressure_grids, write_pressure_grids
 from touchanything.devices.episodes.raw_episode import GRIDS_FILE
-from touchanything.devices.output_safety import replacing, write_text
 
 
 def timed(function, synced: bool) -> float:

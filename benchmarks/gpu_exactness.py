@@ -25,8 +25,8 @@ import numpy as np
 import torch
 
 from touchanything.app.sessions.bundled import SAMPLE_DIR, bundled_models
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_data import episode_paths, first_latency_clip

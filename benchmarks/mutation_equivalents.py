@@ -29,11 +29,11 @@ EQUIVALENT: dict[tuple[str, str], str] = {
     (_M, "if gt.shape[ 1] == 0:"):
         "axis 1 is the two hands, never 0, so the early return is skipped for an empty chunk: it only saves work "
         "(an empty chunk adds 0 to every sum and a (2, 0) flag array)",
-    ("devices/tactile_layout.py", "out = np.asarray(raw, dtype=np.float32)[..., np.where(valid, self.sensor_index[hand], -1)]"):
+    ("core/tactile_layout.py", "out = np.asarray(raw, dtype=np.float32)[..., np.where(valid, self.sensor_index[hand], -1)]"):
         "the slot read for a cell outside the layout is a placeholder: the next line sets those cells to NaN",
-    ("devices/tactile_layout.py", "out = np.asarray(raw, dtype=np.float32)[..., np.where(valid, self.sensor_index[hand], 1)]"):
+    ("core/tactile_layout.py", "out = np.asarray(raw, dtype=np.float32)[..., np.where(valid, self.sensor_index[hand], 1)]"):
         "the slot read for a cell outside the layout is a placeholder: the next line sets those cells to NaN",
-    ("devices/tactile_layout.py", "values = grid[..., h, :, :][..., cells].reshape(- 2, slots.size)"):
+    ("core/tactile_layout.py", "values = grid[..., h, :, :][..., cells].reshape(- 2, slots.size)"):
         "numpy (2.4) takes any negative size as the one to infer, so reshape(-2, n) is reshape(-1, n)",
     (_S, "if window is None and self.config.output == \"newest\":"):
         "with the newest output every cached frame was emitted by the step that cached it, so the centre branch "
@@ -42,11 +42,11 @@ EQUIVALENT: dict[tuple[str, str], str] = {
         "that branch is taken when exactly one hand is missing: its first name is its last",
     ("inference/evaluation/evaluation.py", "has = ~np.all(np.isnan(prediction.reshape(len(prediction), - 2)), axis=1)"):
         "numpy (2.4) takes any negative size as the one to infer, so reshape(n, -2) is reshape(n, -1)",
-    ("devices/output_safety.py", "names = [*Path(out).parts[ 0 if Path(out).is_absolute() else 0:], temporary_path(out).name]"):
+    ("core/output_safety.py", "names = [*Path(out).parts[ 0 if Path(out).is_absolute() else 0:], temporary_path(out).name]"):
         "the extra part is the root \"/\", one byte: never the name over the limit",
-    ("devices/output_safety.py", "path.unlink(missing_ok=False)"):
+    ("core/output_safety.py", "path.unlink(missing_ok=False)"):
         "`_remove` runs under contextlib.suppress(OSError): a missing file is ignored either way",
-    ("devices/output_safety.py", "os.kill(pid, -1)"):
+    ("core/output_safety.py", "os.kill(pid, -1)"):
         "−1 is not a signal: the kernel answers ESRCH (ProcessLookupError: not running) for a process that has ended "
         "and EINVAL (another OSError: running) for one that runs, the answers signal 0 gives",
     (_S, "prediction = Prediction(frame_index=frame.frame_index, t_us=frame.t_us, pressure=pressure - self.mask,"):

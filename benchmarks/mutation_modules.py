@@ -32,8 +32,8 @@ MODULES = {
                          ("-k", "not official_offline")),  # 14 s: the stitched output against the offline protocol
     "streaming_engine": Module("inference/engine/streaming_engine.py", ("tests/test_streaming_edges.py", "tests/test_streaming.py"),
                                ("-k", "not official_offline")),
-    "tactile_layout": Module("devices/tactile_layout.py", ("tests/test_tactile_layout_edges.py", "tests/test_tactile_layout.py")),
-    "output_safety": Module("devices/output_safety.py", ("tests/test_output_safety_edges.py", "tests/test_output_safety.py"),
+    "tactile_layout": Module("core/tactile_layout.py", ("tests/test_tactile_layout_edges.py", "tests/test_tactile_layout.py")),
+    "output_safety": Module("core/output_safety.py", ("tests/test_output_safety_edges.py", "tests/test_output_safety.py"),
                             ("-k", "edges or replacing or check_output_cases")),  # not the commands run end to end
     **{name: Module(f"devices/episodes/{name}.py", _LEROBOT_TESTS, _LEROBOT_K)
        for name in ("lerobot_writer", "lerobot_episode", "lerobot_format")},

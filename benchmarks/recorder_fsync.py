@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.snapshot import FPS, VIEW_NAMES, Snapshot
 from touchanything.devices.rig.recorder import Recorder, RecorderConfig
-from touchanything.devices.snapshot import FPS, VIEW_NAMES, Snapshot
 
 
 class TimedRecorder(Recorder):

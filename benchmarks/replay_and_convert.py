@@ -15,11 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.episodes.hdf5_convert import convert_trajectory
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.snapshot import VIEW_NAMES
 
 
 def textured_frame(view: int, frame: int, texture: np.ndarray) -> np.ndarray:

@@ -38,8 +38,8 @@ def panel_cost(episode) -> dict:
 def logging_cost(episode, folder: Path, videos: bool, scale: float) -> dict:
     """Log every frame of the episode; the cost per frame and the file's MB per minute of episode."""
     from touchanything.app.sessions.replay_export import log_episode_videos
-    from touchanything.devices.snapshot import VIEW_NAMES
-    from touchanything.devices.tactile_layout import TactileLayout
+    from touchanything.core.snapshot import VIEW_NAMES
+    from touchanything.core.tactile_layout import TactileLayout
     from touchanything.inference.evaluation.running_metrics import RunningMetrics
     from touchanything.viz.frame_facts import frame_facts
     from touchanything.viz.rerun_recording import RerunRecording, RerunTarget

@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def partial_path(rrd: Path) -> Path:
     """Where the recording of this process is written until it is renamed into `rrd`."""
-    from touchanything.devices.temporary_files import temporary_path
+    from touchanything.core.temporary_files import temporary_path
 
     return temporary_path(rrd)
 

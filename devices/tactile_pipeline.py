@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from touchanything.devices.snapshot import HANDS
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.snapshot import HANDS
+from touchanything.core.tactile_layout import TactileLayout
 
 BASELINE_NOISE_THRESHOLD = 15.0
 

@@ -18,8 +18,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from touchanything.core.errors import UserError
 from touchanything.devices.camera_pose.model_file import SOURCE_WHEEL, build_model, installed_model_path, read_model
-from touchanything.devices.errors import UserError
 
 PLATFORM = ("--only-binary=:all:", "--platform", "manylinux_2_28_x86_64", "--python-version", "3.11",
             "--implementation", "cp", "--abi", "cp311")

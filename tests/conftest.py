@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from helpers.episode_files import write_quality
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.devices.episodes.episode_files import write_camera_matrices
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
-from touchanything.devices.snapshot import VIEW_NAMES
 
 OFFICIAL_DIR = Path(__file__).resolve().parents[2] / "shared" / "reference" / "egotouch"
 

@@ -13,8 +13,8 @@ import pytest
 from helpers.atlas_file import atlas_row, write_atlas
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import bundled_models, sample_episodes
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.inference.engine.engine_setting import EngineSetting, parse_setting
 from touchanything.inference.evaluation.atlas import choose_within_budget, file_sha256, read_atlas, rows_for
 from touchanything.inference.evaluation.bench_setting import settings_for
@@ -162,7 +162,7 @@ def test_replay_runs_a_named_setting_and_the_video_names_it(atlas, tmp_path, cap
 
 
 def test_the_footer_names_the_setting_first():
-    from touchanything.devices.snapshot import Snapshot
+    from touchanything.core.snapshot import Snapshot
     from touchanything.viz.replay_frame import footer_text
 
     snapshot = Snapshot(7, 0, {}, np.zeros((42, 3), np.float32), np.array([True, True]))

@@ -167,7 +167,7 @@ def test_hdf5_with_wrong_dataset_shape(episode_dir, tmp_path):
 
 def test_not_an_hdf5_file(tmp_path):
     (tmp_path / "x.hdf5").write_text("hello")
-    from touchanything.devices.errors import DataError
+    from touchanything.core.errors import DataError
 
     with pytest.raises(DataError, match="not a readable HDF5 file"):
         open_episode(tmp_path / "x.hdf5")
@@ -195,3 +195,14 @@ def test_a_checkpoint_in_another_pickle_protocol_is_one_line_without_library_war
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [f"touchanything replay: error: {checkpoint}: not a readable PyTorch "
                                                 "checkpoint (UnpicklingError)"]
+
+
+def test_a_data_error_crosses_a_process_boundary_whole():
+    """A worker process of a batch (simulate, convert with --workers) raises DataError to its parent by pickle."""
+    import pickle
+
+    from touchanything.core.errors import DataError
+
+    again = pickle.loads(pickle.dumps(DataError("episode/left.h5", "pressure", "holds NaN")))
+    assert isinstance(again, DataError) and str(again) == "episode/left.h5: pressure: holds NaN"
+    assert (again.path, again.field, again.problem) == (Path("episode/left.h5"), "pressure", "holds NaN")

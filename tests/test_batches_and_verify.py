@@ -77,7 +77,7 @@ def test_a_config_out_of_bounds_beside_a_checkpoint_is_refused_before_replay(cap
 
 
 def test_the_activation_estimate_refuses_what_the_machine_cannot_hold():
-    from touchanything.devices.errors import UserError
+    from touchanything.core.errors import UserError
     from touchanything.inference.model.model_config import PRESETS, activation_bytes, machine_memory_bytes
 
     big = PRESETS["paper"].__class__(image_size=1022)

@@ -10,7 +10,7 @@ import torch
 
 from touchanything.app.cli import build_parser, main
 from touchanything.app.sessions.bundled import sample_episodes
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.inference.evaluation.bench import BenchPlan, bench_model, naive_latency
 from touchanything.inference.evaluation.bench_accuracy import HeldOut, agreement_sums
 from touchanything.inference.evaluation.bench_data import latency_clip

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.viz.colormap import PRESSURE_LUT
 from touchanything.viz.comparison_video import CAMERA_HEIGHT, PANEL_HEIGHT, WIDTH, comparison_frame
 from touchanything.viz.pressure_panel import BEND_LUT, HATCH, MAP_GAP, layout_bend, panel_cell, pressure_maps

@@ -13,12 +13,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from touchanything.core.errors import UserError
+from touchanything.core.hand_pose import project_wilor, wilor_focal_px
 from touchanything.devices.camera_pose.camera_frame import fit_translation, reprojection_px, to_camera_frame
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig, hands_found
 from touchanything.devices.camera_pose.hand_tracks import HandDetection, HandTracks
 from touchanything.devices.camera_pose.model_file import MEMBERS, build_model, installed_model_path, read_model
-from touchanything.devices.errors import UserError
-from touchanything.devices.hand_pose import project_wilor, wilor_focal_px
 
 FAST = settings(max_examples=60, deadline=None)
 SIZES = [(640, 480), (1280, 720), (480, 640), (224, 224)]

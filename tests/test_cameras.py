@@ -14,8 +14,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from touchanything.core.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, UserError
 from touchanything.devices.episodes.video_io import VideoWriter
-from touchanything.devices.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, UserError
 from touchanything.devices.hardware.camera_source import CameraFormat, CameraSource
 from touchanything.devices.hardware.oak_camera import DepthaiFrameSource, OakCamera, OakCameraConfig, host_clock_offset_us
 from touchanything.devices.hardware.opencv_camera import OpenCVCamera, OpenCVCameraConfig

@@ -12,8 +12,8 @@ import pytest
 from touchanything.app.cli import build_parser, main
 from touchanything.app.commands.eval_command import view_configurations
 from touchanything.app.commands.replay_command import given_choice
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.view_sets import parse_view_set, view_set_name
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.view_sets import parse_view_set, view_set_name
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"

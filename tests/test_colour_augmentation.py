@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.inference.model.model_config import PRESETS, with_backbone
 from touchanything.inference.model.preprocess import IMAGENET_MEAN, IMAGENET_STD
 from touchanything.inference.training.colour_augmentation import augment_clip, augment_views

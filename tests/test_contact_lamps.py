@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from helpers.rerun_reading import recording_rows
-from touchanything.devices.snapshot import Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.snapshot import Snapshot
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.viz.comparison_video import CAMERA_HEIGHT, PANEL_HEIGHT
 from touchanything.viz.contact import lamp_centre
 from touchanything.viz.frame_facts import frame_facts

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.metrics import compute_tactile_metrics, contact_frames
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.frame_facts import hand_contact

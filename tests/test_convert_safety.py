@@ -20,9 +20,9 @@ from tests.test_input_links import digest
 from tests.test_refused_inputs import refused
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import SAMPLE_DIR
+from touchanything.core.temporary_files import PARTIAL
 from touchanything.devices.episodes.dataset_split import read_split
 from touchanything.devices.episodes.hdf5_output import SOURCE_MARK, WRITTEN_MARK, written_from
-from touchanything.devices.temporary_files import PARTIAL
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -11,8 +11,8 @@ import pytest
 import torch
 import yaml
 
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.onnx_export import export_onnx
 from touchanything.inference.engine.streaming_engine import StreamingEngine

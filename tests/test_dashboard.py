@@ -19,8 +19,8 @@ from touchanything.app.sessions.bundled import MODELS_DIR, sample_episodes
 from touchanything.app.sessions.engine_choice import ModelChoice, build_engine, choose
 from touchanything.app.sessions.replay_runs import replay_in_dashboard
 from touchanything.app.sessions.replay_session import ReplaySession
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.dashboard.dashboard import CELL, MAPS, Dashboard
 from touchanything.viz.hand_projection import HAND_COLOURS, pose_label
 from touchanything.viz.pressure_panel import AXES, BACKGROUND, MAP_GAP

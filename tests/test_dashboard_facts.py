@@ -16,9 +16,9 @@ import numpy as np
 from test_dashboard import NANO, in_fresh_process, wait_for
 from touchanything.app.sessions.engine_choice import build_engine
 from touchanything.app.sessions.replay_session import ReplaySession
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.view_sets import VIEW_LABELS
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.view_sets import VIEW_LABELS
 from touchanything.viz.contact import OFF, ON, UNKNOWN
 from touchanything.viz.dashboard.dashboard import CELL, MAPS, Dashboard, DashboardConfig
 from touchanything.viz.dashboard.dashboard_controls import DEVICE_COLUMNS, TEXT_WIDTH

@@ -16,10 +16,10 @@ import pytest
 from helpers.simulated_rig import glove_sample
 from touchanything.app.cli import main
 from touchanything.app.sessions.scene import read_scene
+from touchanything.core.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, UserError
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.video_io import VideoWriter
-from touchanything.devices.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, UserError
 from touchanything.devices.hardware import registry
 from touchanything.devices.hardware.camera_hands import CameraHands
 from touchanything.devices.hardware.jq_glove import JQGlove, JQGloveConfig

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from touchanything.app.cli import main
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.onnx_runtime import OnnxRuntime
 from touchanything.inference.engine.streaming_engine import StreamingEngine

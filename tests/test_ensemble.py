@@ -12,8 +12,8 @@ import torch
 
 from touchanything.app.sessions.bundled import MODELS_DIR
 from touchanything.app.sessions.engine_choice import build_engine, choose
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.engine_setting import EngineSetting, parse_setting
 from touchanything.inference.engine.ensemble_engine import EnsembleEngine, load_ensemble, member_mean
 from touchanything.inference.engine.streaming_engine import StreamingEngine

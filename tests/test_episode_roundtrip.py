@@ -8,6 +8,7 @@ import pytest
 
 from helpers.episode_files import write_masks, write_quality
 from tests.conftest import frame_image, glove_sample, wilor_hands, write_episode
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_files import (
     Masks,
     read_camera_matrices,
@@ -21,7 +22,6 @@ from touchanything.devices.episodes.episode_loader import find_raw_episodes, ope
 from touchanything.devices.episodes.episode_streams import read_glove, read_hands, read_trackers
 from touchanything.devices.episodes.raw_episode import open_raw_episode
 from touchanything.devices.episodes.video_io import VideoReader, VideoWriter
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import process_raw
 
 
@@ -128,7 +128,7 @@ def test_discovery_finds_trajectories_up_to_four_levels(tmp_path):
 
 
 def test_open_episode_rejects_other_paths(tmp_path):
-    from touchanything.devices.errors import DataError
+    from touchanything.core.errors import DataError
 
     (tmp_path / "x.txt").write_text("hi")
     for path, message in ((tmp_path / "x.txt", "not an episode"), (tmp_path, "not an episode folder"),

@@ -14,11 +14,11 @@ import pytest
 import torch
 
 from touchanything.app.cli import main
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.dataset_split import SPLIT_KEYS, read_split, write_split
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.evaluation import trajectory_metrics
 from touchanything.inference.evaluation.metrics import ALL_METRICS, ground_truth_for_metrics
 from touchanything.inference.evaluation.trajectory_prediction import predict_trajectory

@@ -11,8 +11,8 @@ from test_dashboard import wait_for
 from touchanything.app.sessions.bundled import bundled_models
 from touchanything.app.sessions.engine_choice import build_engine, choose
 from touchanything.app.sessions.replay_session import ReplaySession
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.snapshot import VIEW_NAMES
 
 FIRST, SECOND = "pico", "nano_pose_only"
 """A small model with images, then a pose-only model (trained on black frames: it uses no view)."""

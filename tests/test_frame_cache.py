@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.inference.training import frame_cache as frame_cache_module
 from touchanything.inference.training.clip_dataset import ClipDataset, clip_loader
 from touchanything.inference.training.frame_cache import CACHE_DIR, FrameCache

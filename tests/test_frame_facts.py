@@ -9,8 +9,8 @@ import numpy as np
 
 from helpers.rerun_reading import recording_rows
 from touchanything.app.cli import main
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.comparison_video import CAMERA_HEIGHT, PANEL_HEIGHT
 from touchanything.viz.contact import UNKNOWN, lamp_centre

@@ -29,6 +29,7 @@ from helpers.fuzzing import (
     no_hang,
 )
 from tests.conftest import write_episode
+from touchanything.core.errors import UserError
 from touchanything.devices.episodes.episode_files import Masks
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.hdf5_convert import convert_trajectory
@@ -41,7 +42,6 @@ from touchanything.devices.episodes.raw_episode import (
     VIVE_FILE,
     WILOR_FILE,
 )
-from touchanything.devices.errors import UserError
 
 SIZE = (32, 48)
 STREAM_FILES = {"wilor": WILOR_FILE, "rokoko": ROKOKO_FILE, "trackers": VIVE_FILE, "glove": GLOVE_FILE,

@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from helpers.fuzzing import NANO, ROOT, corrupt_text, fraction, fuzz, no_hang
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 
 
 @fuzz(80)

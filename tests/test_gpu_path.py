@@ -20,8 +20,8 @@ from torch.overrides import TorchFunctionMode
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import SAMPLE_DIR, bundled_models
 from touchanything.app.sessions.scene import read_scene
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine import captured_call
 from touchanything.inference.engine.captured_call import CapturedCall, CapturedCalls
 from touchanything.inference.engine.engine_runtime import TorchRuntime

@@ -18,15 +18,15 @@ from helpers.hand_video import HANDS_DIR, background, reference_image, write_han
 from touchanything.app.cli import main
 from touchanything.app.sessions.engine_choice import build_engine, choose, default_checkpoint
 from touchanything.app.sessions.replay_session import ReplaySession
+from touchanything.core.errors import UserError
+from touchanything.core.hand_pose import pose_is_valid
+from touchanything.core.snapshot import POSE_FROM_CAMERA
 from touchanything.devices.camera_pose.estimator import STAGE, CameraPoseConfig, HandPoseEstimator
 from touchanything.devices.camera_pose.model_file import installed_model_path
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.raw_episode import open_raw_episode
 from touchanything.devices.episodes.video_io import VideoReader, VideoWriter
-from touchanything.devices.errors import UserError
-from touchanything.devices.hand_pose import pose_is_valid
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.snapshot import POSE_FROM_CAMERA
 from touchanything.viz.replay_frame import footer_text
 
 NANO = choose(default_checkpoint())

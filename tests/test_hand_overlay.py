@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from touchanything.app.sessions.bundled import sample_episodes
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.viz.hand_projection import draw_hands, project_wilor
 from touchanything.viz.hand_regions import REGIONS, joint_pressure
 

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.viz.comparison_video import comparison_frame
 from touchanything.viz.hand3d_panel import HAND3D_HEIGHT, TITLE_HEIGHT, UNPAINTED, draw_hand, hand3d_panel
 from touchanything.viz.hand_surface import hand_topology, hand_vertices, palm_frame, vertex_normals, vertex_values

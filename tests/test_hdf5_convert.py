@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from tests.conftest import write_episode
+from touchanything.core.errors import DataError, UserError
 from touchanything.devices.episodes.dataset_conversion import convert_dataset
 from touchanything.devices.episodes.dataset_split import SplitConfig, build_split, read_split, write_split
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.hdf5_convert import convert_trajectory
-from touchanything.devices.errors import DataError, UserError
 
 OFFICIAL_DATASETS = {
     "timestamps": ((), np.int64),

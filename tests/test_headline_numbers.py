@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.evaluation import EvaluationResult, trajectory_metrics
 
 LAYOUT = TactileLayout.default()

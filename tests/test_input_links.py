@@ -13,9 +13,9 @@ import pytest
 
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import sample_episodes
-from touchanything.devices.errors import UserError
-from touchanything.devices.input_paths import collect_inputs
-from touchanything.devices.output_safety import check_output
+from touchanything.core.errors import UserError
+from touchanything.core.input_paths import collect_inputs
+from touchanything.core.output_safety import check_output
 
 
 def digest(path: Path) -> dict[str, str]:

@@ -14,8 +14,8 @@ import pytest
 
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import SAMPLE_DIR
-from touchanything.devices.output_safety import replacing
-from touchanything.devices.temporary_files import PARTIAL, remove_left_behind
+from touchanything.core.output_safety import replacing
+from touchanything.core.temporary_files import PARTIAL, remove_left_behind
 
 
 def start(argv: list[str]) -> subprocess.Popen:

@@ -13,12 +13,12 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import HANDS
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.jq_glove import JQGlove, JQGloveConfig
 from touchanything.devices.hardware.jq_protocol import MAX_BUFFERED, SYNC, JQStreamParser, encode_sample
 from touchanything.devices.sim.glove_serial import SimulatedGloveSerial, episode_glove_provider
-from touchanything.devices.snapshot import HANDS
 
 ROOT = Path(__file__).resolve().parents[1]
 FIRST, SAMPLE = 134, 284

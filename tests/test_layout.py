@@ -6,10 +6,11 @@ import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-FOLDERS = ("app", "devices", "inference", "viz")
+FOLDERS = ("app", "core", "devices", "inference", "viz")
 DATA_PACKAGES = ("touchanything.models", "touchanything.sample")
 """Packages of bundled files, no code (docs/layout.md: found through importlib.resources)."""
 LAYERS = (
+    ("touchanything.core",),
     ("touchanything.devices",),
     ("touchanything.devices.camera_pose",),
     ("touchanything.devices.episodes", "touchanything.devices.hardware"),

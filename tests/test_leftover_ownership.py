@@ -14,13 +14,13 @@ import pytest
 
 from tests.test_input_links import digest
 from touchanything.app.cli import main
-from touchanything.devices.output_safety import replacing
-from touchanything.devices.temporary_files import marker_path, remove_left_behind, temporary_path
+from touchanything.core.output_safety import replacing
+from touchanything.core.temporary_files import marker_path, remove_left_behind, temporary_path
 
 CHILD = """
 import sys, time
 from pathlib import Path
-from touchanything.devices.temporary_files import mark, temporary_path
+from touchanything.core.temporary_files import mark, temporary_path
 folder = Path(sys.argv[1])
 for name in sys.argv[3:]:
     kind = "folder" if name.endswith("/") else "file"

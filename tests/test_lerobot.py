@@ -15,10 +15,10 @@ from rerun.chunk import RrdReader
 from conftest import write_episode
 from helpers.lerobot_community import write_community_dataset
 from touchanything.app.cli import main
+from touchanything.core.errors import DataError
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.errors import DataError
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.tactile_layout import TactileLayout
 
 SAMPLE = Path(__file__).resolve().parents[1] / "recordings" / "sample"
 NANO = Path(__file__).resolve().parents[1] / "models" / "nano" / "best_model.pth"

@@ -13,10 +13,10 @@ import pytest
 
 from conftest import write_episode
 from touchanything.app.cli import main
+from touchanything.core.errors import DataError
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.lerobot_export import export_lerobot
-from touchanything.devices.errors import DataError
 
 
 def zero_packets_from(video: Path, first: int) -> int:

@@ -15,12 +15,12 @@ import pytest
 from conftest import frame_image, write_episode
 from helpers.lerobot_old_export import make_old_export
 from touchanything.app.cli import main
+from touchanything.core.errors import DataError
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.episodes.lerobot_checks import metadata_problems
 from touchanything.devices.episodes.lerobot_stats import aggregate, feature_stats
-from touchanything.devices.errors import DataError
-from touchanything.devices.tactile_layout import TactileLayout
 
 
 @pytest.fixture

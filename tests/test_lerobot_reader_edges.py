@@ -13,13 +13,13 @@ import pytest
 
 from conftest import frame_image, write_episode
 from helpers.lerobot_community import write_community_dataset
+from touchanything.core.errors import DataError
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.lerobot_episode import read_info
 from touchanything.devices.episodes.lerobot_export import export_lerobot
 from touchanything.devices.episodes.video_io import VideoWriter
-from touchanything.devices.errors import DataError
-from touchanything.devices.tactile_layout import TactileLayout
 
 T = 6
 

@@ -12,14 +12,14 @@ import pyarrow.parquet as pq
 import pytest
 
 from conftest import frame_image, write_episode
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.episodes.lerobot_export import export_lerobot
 from touchanything.devices.episodes.lerobot_writer import LeRobotWriter, _OpenFile, frame_features
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.tactile_layout import TactileLayout
 
 SENSOR_CELLS = TactileLayout.default().valid
 

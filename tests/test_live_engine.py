@@ -19,9 +19,9 @@ import pytest
 import torch
 
 from touchanything.app.sessions.bundled import sample_episodes
+from touchanything.core.snapshot import Snapshot
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.snapshot import Snapshot
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.live_engine import LiveEngine
 from touchanything.inference.engine.streaming_engine import StreamingEngine

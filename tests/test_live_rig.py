@@ -16,8 +16,8 @@ import pytest
 from touchanything.app.cli import main
 from touchanything.app.commands.live_command import open_live_session, run_headless
 from touchanything.app.sessions.scene import read_scene
+from touchanything.core.errors import UserError
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.errors import UserError
 from touchanything.devices.rig.pose_transform import PoseCalibration
 from touchanything.devices.sim.rig import rig_calibration
 

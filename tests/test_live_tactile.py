@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.rig.live_tactile import LiveTactile
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import TactileConfig, process_raw
 
 

@@ -9,7 +9,7 @@ import torch
 import torch.nn.functional as F
 import yaml
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.inference.model.checkpoint import build_model, load_model, save_checkpoint
 from touchanything.inference.model.model_config import PRESETS, ModelConfig, with_backbone
 from touchanything.inference.model.pose_encoder import prepare_poses

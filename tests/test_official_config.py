@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from touchanything.app.cli import main
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.inference.model.config_files import read_config_file
 from touchanything.inference.model.model_config import PRESETS, config_from_dict, config_to_dict, with_backbone
 from touchanything.inference.training.train_config import TrainConfig, describe_settings, train_config_from_file, train_config_to_dict

@@ -23,8 +23,8 @@ from touchanything.app.cli import main
 from touchanything.app.commands.live_command import open_live_session
 from touchanything.app.sessions.bundled import MODELS_DIR
 from touchanything.app.sessions.scene import read_scene
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.live_engine import LiveEngine
 from touchanything.inference.engine.onnx_cache import onnx_cache_dir

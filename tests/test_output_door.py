@@ -16,7 +16,7 @@ import pytest
 from tests.conftest import write_episode
 from tests.test_input_links import digest
 from touchanything.app.cli import COMMANDS, build_parser, main
-from touchanything.devices.temporary_files import OWNER, PARTIAL
+from touchanything.core.temporary_files import OWNER, PARTIAL
 from touchanything.inference.evaluation.bench_report import OUTPUT_FILES as BENCH_FILES
 
 REPO = Path(__file__).resolve().parents[1]

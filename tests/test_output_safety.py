@@ -1,5 +1,5 @@
 """No command destroys what it reads (docs/data_safety.md, issue 25): the output rule of
-`devices.output_safety`, the rows of issue 25's table about outputs, and a property test running every
+`core.output_safety`, the rows of issue 25's table about outputs, and a property test running every
 writing command with its output pointed at each of its inputs."""
 from __future__ import annotations
 
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from touchanything.app.cli import main
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import check_output, replacing, replacing_folder, write_text
-from touchanything.devices.temporary_files import PARTIAL
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import check_output, replacing, replacing_folder, write_text
+from touchanything.core.temporary_files import PARTIAL
 from touchanything.inference.training.frame_cache import CACHE_DIR
 from touchanything.viz.comparison_video import is_comparison_video, write_comparison_video
 

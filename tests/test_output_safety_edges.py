@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from touchanything.devices import output_safety
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import (
+from touchanything.core import output_safety
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import (
     check_name_lengths,
     check_output,
     check_outside,
@@ -27,7 +27,7 @@ from touchanything.devices.output_safety import (
     replacing_folder,
     write_text,
 )
-from touchanything.devices.temporary_files import OWNER, PARTIAL, temporary_path
+from touchanything.core.temporary_files import OWNER, PARTIAL, temporary_path
 
 
 def refused(message: str, *args, **kwargs) -> str:

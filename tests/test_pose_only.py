@@ -23,11 +23,11 @@ from helpers.vision_task import write_vision_dataset
 from touchanything.app.cli import main
 from touchanything.app.commands.eval_command import markdown
 from touchanything.app.sessions.bundled import sample_episodes
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.devices.episodes.dataset_split import read_split
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench import BenchPlan, bench_model

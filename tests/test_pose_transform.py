@@ -14,8 +14,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import TRACKER_ROLES
 from touchanything.devices.episodes.episode_streams import read_hands, read_trackers
-from touchanything.devices.errors import UserError
 from touchanything.devices.rig.pose_transform import (
     BAD_CHEST,
     NO_CHEST,
@@ -31,7 +32,6 @@ from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_ep
 from touchanything.devices.sim.pose_estimate import DEPTH_JITTER, JITTER
 from touchanything.devices.sim.rig import ROKOKO_AXES, rig_calibration, rokoko_joints, tracker_poses
 from touchanything.devices.sim.shapes import pose_at, transform
-from touchanything.devices.snapshot import TRACKER_ROLES
 from touchanything.viz.hand_projection import project_wilor
 
 FAST = settings(max_examples=40, deadline=None)

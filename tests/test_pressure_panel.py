@@ -99,7 +99,7 @@ def test_a_title_is_drawn_once_with_its_shadow_under_it(text):
 def test_a_hand_without_a_pose_reads_no_pose_not_zero_pressure():
     """Bare-hand replay: a hand the engine did not predict (it holds 0 there) is drawn as background with its
     label, never as the blue of zero pressure; the predicted hand keeps its map."""
-    from touchanything.devices.tactile_layout import TactileLayout
+    from touchanything.core.tactile_layout import TactileLayout
     from touchanything.inference.engine.prediction import Prediction
     from touchanything.viz.dashboard.dashboard_panels import pressure_views
     from touchanything.viz.dashboard.dashboard_state import SessionState

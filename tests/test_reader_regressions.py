@@ -73,8 +73,8 @@ def test_numbers_beyond_float_range_are_invalid_values_not_a_crash(episode_dir):
 
 
 def test_damaged_npz_members_and_scalars(episode_dir, tmp_path):
+    from touchanything.core.errors import DataError
     from touchanything.devices.episodes.episode_files import read_pressure_grids
-    from touchanything.devices.errors import DataError
 
     path = episode_dir / GRIDS_FILE
     data = bytearray(path.read_bytes())
@@ -141,8 +141,8 @@ def test_a_video_whose_header_gives_an_absurd_frame_rate_reads_at_30_fps(episode
 
 @pytest.mark.parametrize("entry", ["", "x" * 300 + ".hdf5", "a\x00b.hdf5"])
 def test_a_split_entry_that_is_no_path_is_one_line(tmp_path, entry):
+    from touchanything.core.errors import DataError
     from touchanything.devices.episodes.dataset_split import read_split
-    from touchanything.devices.errors import DataError
 
     (tmp_path / "split.json").write_text(json.dumps({"train": ["a.hdf5"], "val": [], "test_seen": [entry]}))
     with pytest.raises(DataError, match=r"split.json: test_seen: entry 1 is not a usable file path"):

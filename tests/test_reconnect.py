@@ -12,8 +12,8 @@ from pathlib import Path
 import depthai as dai
 import numpy as np
 
+from touchanything.core.errors import UserError
 from touchanything.devices.episodes.video_io import VideoWriter
-from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.oak_camera import DepthaiFrameSource
 from touchanything.devices.hardware.opencv_camera import OpenCVCamera, OpenCVCameraConfig
 from touchanything.devices.hardware.threaded_source import now_us

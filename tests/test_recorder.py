@@ -16,15 +16,15 @@ import pytest
 
 from helpers.simulated_rig import frame_picture, synthetic_snapshot
 from tests.test_convert_safety import tmpfs
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import FPS
+from touchanything.core.temporary_files import recorded_stream
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_streams import read_glove, read_hands
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter, write_grids_from_glove
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.devices.errors import UserError
 from touchanything.devices.rig.recorder import Recorder, RecorderConfig, describe_error
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.snapshot import FPS
-from touchanything.devices.temporary_files import recorded_stream
 
 TESTS = Path(__file__).resolve().parent
 

@@ -15,15 +15,15 @@ import pytest
 
 from helpers.simulated_rig import frame_picture, simulated_rig, synthetic_snapshot
 from touchanything.app.sessions.scene import read_scene
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import FPS, Snapshot
+from touchanything.core.temporary_files import temporary_path
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_streams import IDENTITY_WXYZ
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
-from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.threaded_source import now_us
 from touchanything.devices.rig.recorder import Recorder, RecorderConfig
 from touchanything.devices.rig.rig_clock import RigClock
-from touchanything.devices.snapshot import FPS, Snapshot
-from touchanything.devices.temporary_files import temporary_path
 
 
 @dataclass(frozen=True)

@@ -7,9 +7,9 @@ import time
 import numpy as np
 import pytest
 
+from touchanything.core.errors import UserError
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.hdf5_convert import convert_trajectory
-from touchanything.devices.errors import UserError
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 
 

@@ -6,9 +6,9 @@ import pytest
 
 from touchanything.app.cli import main
 from touchanything.app.sessions.replay_export import ReplaySummary
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.frame_facts import FrameFacts, HandFacts
 from touchanything.viz.pressure_panel import BACKGROUND

@@ -15,9 +15,9 @@ from rerun.chunk import RrdReader
 from helpers.rerun_reading import recording_rows
 from touchanything.app.cli import main
 from touchanything.app.sessions.rerun_sink import MAX_PENDING, RerunSink, seconds_since_first
+from touchanything.core.snapshot import Snapshot
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.snapshot import Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
 from touchanything.viz.colormap import PRESSURE_LUT, apply
 from touchanything.viz.frame_facts import frame_facts

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.viz.frame_facts import frame_facts
 from touchanything.viz.rerun_accounting import entity_kind
 from touchanything.viz.rerun_recording import RerunRecording, RerunTarget

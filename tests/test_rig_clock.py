@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from helpers.simulated_rig import CHEST_POSE, glove_sample, mocap_hands, simulated_rig, to_model
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.devices.hardware.camera_source import CameraReading
 from touchanything.devices.hardware.jq_glove import GloveReading
 from touchanything.devices.hardware.openvr_trackers import TrackerReading

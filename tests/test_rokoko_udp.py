@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from helpers.rokoko_messages import DEADLINE_S, GLOVE_AT_REST, pack, studio_actor, studio_hands, v3_message
+from touchanything.core.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, UserError
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
-from touchanything.devices.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, UserError
 from touchanything.devices.hardware.rokoko_protocol import LZ4_MAGIC, encode_datagram
 from touchanything.devices.hardware.rokoko_udp import RokokoConfig, RokokoReceiver
 from touchanything.devices.sim.rokoko_sender import RokokoSenderConfig, SimulatedRokokoSender, episode_hands_provider

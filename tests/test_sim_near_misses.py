@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from touchanything.app.cli import main
+from touchanything.core.snapshot import FPS, HANDS
 from touchanything.devices.sim.cameras import head_camera, wrist_camera
 from touchanything.devices.sim.catalogue import (
     AIR_PUSH,
@@ -37,7 +38,6 @@ from touchanything.devices.sim.shapes import pose_at
 from touchanything.devices.sim.task_scripts import Planner
 from touchanything.devices.sim.touch import touch_frame
 from touchanything.devices.sim.world import make_object, static_faces
-from touchanything.devices.snapshot import FPS, HANDS
 
 HEAD = head_camera(np.array([0.0, -0.2, 0.45]), np.array([0.0, 0.2, 0.0]))
 MODEL_SIZE = 112

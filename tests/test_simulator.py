@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 
 from touchanything.app.cli import main
+from touchanything.core.errors import UserError
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import find_raw_episodes, open_episode
 from touchanything.devices.episodes.hdf5_convert import convert_trajectory
-from touchanything.devices.errors import UserError
 from touchanything.devices.sim.dataset_generator import SimulationConfig, simulate_dataset
 from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_episode
 from touchanything.devices.sim.hand_model import FINGER_COLUMNS, hand_state
 from touchanything.devices.sim.script_base import PALM_DOWN
 from touchanything.devices.sim.shapes import Shape, pose_at
 from touchanything.devices.sim.touch import DEPTH_SCALE, cell_pressure
-from touchanything.devices.tactile_layout import TactileLayout
 
 JSONL = ("wilor_hands.json", "rokoko_hands.json", "vive_poses.json", "jq_pressure.json")
 

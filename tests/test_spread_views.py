@@ -12,9 +12,9 @@ from rerun.chunk import RrdReader
 from helpers.rerun_reading import recording_rows
 from touchanything.app.sessions.bundled import MODELS_DIR
 from touchanything.app.sessions.replay_export import ReplaySummary, replay_frames
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.ensemble_engine import load_ensemble
 from touchanything.viz.comparison_video import CAMERA_HEIGHT, PANEL_HEIGHT, comparison_frame

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import torch
 
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import find_hdf5_files, open_episode
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.frame_ring import CachedFrame, FrameRing
 from touchanything.inference.engine.streaming_engine import StreamingEngine

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine import streaming_engine
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.streaming_engine import StreamingEngine

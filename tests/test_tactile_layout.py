@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from touchanything.devices.errors import DataError
-from touchanything.devices.tactile_layout import TactileLayout, read_mapping
+from touchanything.core.errors import DataError
+from touchanything.core.tactile_layout import TactileLayout, read_mapping
 
 
 def test_official_files_give_217_cells_and_the_documented_split(official_dir):

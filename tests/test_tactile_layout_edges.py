@@ -9,8 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from touchanything.devices.errors import DataError
-from touchanything.devices.tactile_layout import TactileLayout, read_bend_cells, read_mapping
+from touchanything.core.errors import DataError
+from touchanything.core.tactile_layout import TactileLayout, read_bend_cells, read_mapping
 
 LEFT = {"0,0": 0, "0,1": 1, "5,5": 255, "20,20": 7, "3,3": 7}
 RIGHT = {"0,0": 2, "1,20": 0}

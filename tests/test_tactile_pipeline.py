@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import TactileConfig, process_raw
 
 LAYOUT = TactileLayout.default()

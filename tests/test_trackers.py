@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.devices.hardware.openvr_trackers import (
     INSTALL_HINT,
     OpenVRTrackers,

@@ -16,8 +16,8 @@ import torch
 import yaml
 
 from touchanything.app.cli import main
+from touchanything.core.errors import UserError
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.errors import UserError
 from touchanything.inference.model.checkpoint import load_model, read_checkpoint
 from touchanything.inference.model.model_config import PRESETS, with_backbone
 from touchanything.inference.model.touch_model import TouchAnything

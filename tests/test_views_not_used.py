@@ -14,10 +14,10 @@ from rerun.chunk import RrdReader
 from helpers.rerun_reading import recording_rows
 from touchanything.app.cli import main
 from touchanything.app.sessions.bundled import MODELS_DIR
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.tactile_layout import TactileLayout
+from touchanything.core.view_sets import view_label, views_used
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.devices.view_sets import view_label, views_used
 from touchanything.viz.comparison_video import CAMERA_HEIGHT, comparison_frame
 from touchanything.viz.dashboard.dashboard_panels import camera_panel
 from touchanything.viz.frame_facts import frame_facts

@@ -1,4 +1,4 @@
-"""One vocabulary of view and panel names: the views' labels and ids (`devices.view_sets`) and the maps' titles
+"""One vocabulary of view and panel names: the views' labels and ids (`core.view_sets`) and the maps' titles
 (`viz.pressure_panel.MAP_TITLES`) are what the comparison video draws, what the Rerun blueprint names its views,
 what `info` prints — and no module keeps its own copy. (The dashboard's titles and checkboxes:
 tests/test_dashboard_facts.py.)"""
@@ -13,14 +13,14 @@ from rerun.blueprint.api import Container
 
 from test_layout import module_files
 from touchanything.app.cli import main
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.devices.view_sets import VIEW_IDS, VIEW_LABELS, parse_view_set, view_set_name
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.tactile_layout import TactileLayout
+from touchanything.core.view_sets import VIEW_IDS, VIEW_LABELS, parse_view_set, view_set_name
 from touchanything.viz.comparison_video import CAMERA_HEIGHT, PANEL_HEIGHT, comparison_frame
 from touchanything.viz.pressure_panel import MAP_TITLES, pressure_panel, put_text
 from touchanything.viz.rerun_blueprint import default_blueprint
 
-VOCABULARY_MODULES = {"touchanything.devices.view_sets", "touchanything.viz.pressure_panel"}
+VOCABULARY_MODULES = {"touchanything.core.view_sets", "touchanything.viz.pressure_panel"}
 FILE_MAPS = {"touchanything.devices.episodes.raw_episode": "VIDEO_FILES", "touchanything.devices.episodes.hdf5_episode": "IMAGE_KEYS"}
 """Dicts keyed by the three views that map them to where they are stored (file names stay the official ones)."""
 

@@ -41,7 +41,7 @@ def wheel(tmp_path_factory) -> Path:
 def test_the_wheel_holds_the_namespace_and_what_ships_with_it(wheel):
     names = zipfile.ZipFile(wheel).namelist()
     assert {name.split("/")[0] for name in names} == {"touchanything", "touchanything-0.1.0.dist-info"}
-    layout = {name.rpartition("/")[2] for name in names if name.startswith("touchanything/devices/layouts/default/")}
+    layout = {name.rpartition("/")[2] for name in names if name.startswith("touchanything/core/layouts/default/")}
     assert layout == {p.name for p in (ROOT / "devices" / "layouts" / "default").glob("*.json")}
     assert "touchanything/app/cli.py" in names and "touchanything/inference/engine/streaming_engine.py" in names
     for model in (p.parent.name for p in (ROOT / "models").glob("*/best_model.pth")):

@@ -8,10 +8,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from touchanything.core.output_safety import replacing
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.view_sets import view_label
 from touchanything.devices.episodes.video_io import VideoWriter, video_comment
-from touchanything.devices.output_safety import replacing
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.view_sets import view_label
 from touchanything.viz.pressure_panel import (
     BACKGROUND,
     MAP_TITLES,

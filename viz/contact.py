@@ -7,7 +7,7 @@ import functools
 import cv2
 import numpy as np
 
-from touchanything.devices.snapshot import HANDS
+from touchanything.core.snapshot import HANDS
 from touchanything.viz.frame_facts import FrameFacts
 from touchanything.viz.pressure_panel import BACKGROUND, put_text
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from touchanything.devices.snapshot import HANDS
+from touchanything.core.snapshot import HANDS
 from touchanything.inference.evaluation.metrics import CONTACT_THRESHOLD, contact_frames
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from touchanything.devices.snapshot import HANDS
+from touchanything.core.snapshot import HANDS
 from touchanything.viz.colormap import PRESSURE_LUT, apply
 from touchanything.viz.hand_surface import cross, hand_topology, hand_vertices, palm_frame, vertex_values
 from touchanything.viz.pressure_panel import BACKGROUND, put_text

@@ -1,7 +1,7 @@
 """2D hand skeletons with pressure drawn onto the joints, in the head-camera image, and the line saying where
 the pose comes from.
 
-WiLoR joints live in the head-camera frame with WiLoR's camera (`devices.hand_pose.project_wilor`), so they
+WiLoR joints live in the head-camera frame with WiLoR's camera (`core.hand_pose.project_wilor`), so they
 project with a pinhole.
 """
 from __future__ import annotations
@@ -9,8 +9,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from touchanything.devices.hand_pose import project_wilor
-from touchanything.devices.snapshot import HANDS, POSE_FROM_CAMERA, Snapshot
+from touchanything.core.hand_pose import project_wilor
+from touchanything.core.snapshot import HANDS, POSE_FROM_CAMERA, Snapshot
 from touchanything.viz.colormap import PRESSURE_LUT, apply
 from touchanything.viz.hand_regions import BONES, joint_pressure
 

@@ -15,7 +15,7 @@ import functools
 import cv2
 import numpy as np
 
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply, lookup_table
 
 BACKGROUND = (26, 26, 46)

@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.devices.view_sets import view_set_name
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.view_sets import view_set_name
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.viz.comparison_video import STRIP_HEIGHT, comparison_frame
 from touchanything.viz.contact import contact_badges

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import rerun.blueprint as rrb
 
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.view_sets import VIEW_LABELS
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.view_sets import VIEW_LABELS
 from touchanything.viz.pressure_panel import MAP_TITLES, SPREAD_TITLE
 from touchanything.viz.rerun_hands import paint_overrides
 

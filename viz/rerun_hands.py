@@ -1,7 +1,7 @@
 """The hands in a Rerun recording (`viz.rerun_recording`): their annotation (joint names, bones) and their surfaces.
 
 `hand_classes()`: class 0 the left hand and 1 the right, each with the 21 joints as keypoints named in the
-official order (`wrist`, `thumb_1` … `pinky_4`, `devices.hand_pose.JOINT_NAMES`) and the bones as keypoint
+official order (`wrist`, `thumb_1` … `pinky_4`, `core.hand_pose.JOINT_NAMES`) and the bones as keypoint
 connections; logged once, static, for `world/hands` and `cameras/ego/hands` (a hovered joint says its name).
 
 `HandSurfaces`: one mesh per hand, `world/surface/{left,right}` (`viz.hand_surface`), whose geometry — vertex
@@ -23,8 +23,8 @@ import rerun as rr
 from rerun.blueprint.encodings import VisualizerComponentMapping
 from rerun.blueprint.visualizers import Visualizer
 
-from touchanything.devices.hand_pose import JOINT_NAMES
-from touchanything.devices.snapshot import HANDS
+from touchanything.core.hand_pose import JOINT_NAMES
+from touchanything.core.snapshot import HANDS
 from touchanything.viz.hand3d_panel import vertex_colours
 from touchanything.viz.hand_projection import HAND_COLOURS
 from touchanything.viz.hand_regions import BONES

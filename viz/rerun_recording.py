@@ -42,10 +42,10 @@ import cv2
 import numpy as np
 import rerun as rr
 
-from touchanything.devices.hand_pose import project_wilor
-from touchanything.devices.snapshot import HANDS, TRACKER_ROLES, VIEW_NAMES
-from touchanything.devices.temporary_files import mark, temporary_path, unmark
-from touchanything.devices.view_sets import view_label
+from touchanything.core.hand_pose import project_wilor
+from touchanything.core.snapshot import HANDS, TRACKER_ROLES, VIEW_NAMES
+from touchanything.core.temporary_files import mark, temporary_path, unmark
+from touchanything.core.view_sets import view_label
 from touchanything.viz.colormap import ERROR_LUT, PRESSURE_LUT, apply
 from touchanything.viz.frame_facts import FrameFacts
 from touchanything.viz.pressure_panel import BACKGROUND, SPREAD_HIGH, unposed_as_nan

@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING
 from touchanything.app.sessions.bundled import ATLAS_FILE, MODELS_DIR, OUTPUT_DIR, SAMPLE_DIR, bundled_models
 from touchanything.app.sessions.engine_choice import DEFAULT_MODEL, add_device_argument
 from touchanything.app.sessions.setting_choice import budget_request
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import add_overwrite_argument, check_report_folder, write_text
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import add_overwrite_argument, check_report_folder, write_text
 from touchanything.inference.evaluation.atlas import file_sha256
 from touchanything.inference.evaluation.bench_intervals import add_intervals, align_rows, paired_comparisons
 from touchanything.inference.evaluation.bench_report import (

@@ -18,8 +18,8 @@ from touchanything.app.sessions.engine_choice import (
 )
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
 from touchanything.app.sessions.setting_choice import add_setting_arguments, picked_setting, setting_request
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import add_overwrite_argument
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import add_overwrite_argument
 from touchanything.viz.display import display_problem
 
 DEMO_VIDEO = OUTPUT_DIR / "demo.mp4"

@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from touchanything.devices.snapshot import TRACKER_ROLES, VIEW_NAMES
+from touchanything.core.snapshot import TRACKER_ROLES, VIEW_NAMES
 
 if TYPE_CHECKING:  # the finders import OpenCV and pyserial: only when the command runs
     from touchanything.devices.hardware.discovery import Discovery, FoundCamera, FoundOak, FoundSerialPort, FoundTracker
@@ -125,7 +125,7 @@ def scene_snippet(findings: Findings) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from touchanything.devices.errors import UserError
+    from touchanything.core.errors import UserError
 
     if not (math.isfinite(args.listen) and args.listen >= 0):
         raise UserError(f"--listen must be a number of seconds ≥ 0, got {args.listen}")

@@ -12,12 +12,12 @@ import numpy as np
 from touchanything.app.sessions.bundled import BASELINES, MODELS_DIR, bundled_baselines
 from touchanything.app.sessions.engine_choice import add_device_argument, view_set_argument
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, check_rrd_output
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import add_overwrite_argument, check_report_folder, write_text
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.tactile_layout import TactileLayout
+from touchanything.core.view_sets import VIEW_HELP, VIEW_SETS, view_set_name, views_used
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import add_overwrite_argument, check_report_folder, write_text
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.devices.view_sets import VIEW_HELP, VIEW_SETS, view_set_name, views_used
 from touchanything.inference.evaluation.evaluation_report import RESULT_FILES, markdown, results_json
 from touchanything.inference.model.torch_device import (
     PRECISIONS,

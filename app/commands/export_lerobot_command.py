@@ -9,11 +9,11 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from touchanything.core.errors import UserError
+from touchanything.core.input_paths import collect_inputs
+from touchanything.core.output_safety import add_overwrite_argument, check_output, check_outside
+from touchanything.core.view_sets import view_set_name
 from touchanything.devices.episodes.lerobot_format import ACTION_CHOICES
-from touchanything.devices.errors import UserError
-from touchanything.devices.input_paths import collect_inputs
-from touchanything.devices.output_safety import add_overwrite_argument, check_output, check_outside
-from touchanything.devices.view_sets import view_set_name
 
 if TYPE_CHECKING:
     from tqdm import tqdm

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.inference.engine.onnx_export_folder import check_export_folder, export_files, export_names
 from touchanything.inference.engine.onnx_manifest import MANIFEST
 

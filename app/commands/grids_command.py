@@ -5,10 +5,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from touchanything.devices.errors import DataError, require_finite_positive
-from touchanything.devices.output_safety import add_overwrite_argument, check_output, named
-from touchanything.devices.snapshot import HANDS
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.errors import DataError, require_finite_positive
+from touchanything.core.output_safety import add_overwrite_argument, check_output, named
+from touchanything.core.snapshot import HANDS
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import TactileConfig
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.devices.errors import UserError, failure_line
+from touchanything.core.errors import UserError, failure_line
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:

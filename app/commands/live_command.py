@@ -23,8 +23,8 @@ from touchanything.app.sessions.rerun_output import (
     session_properties,
 )
 from touchanything.app.sessions.setting_choice import PickedSetting, add_setting_arguments, picked_setting, setting_request
-from touchanything.devices.errors import require_finite_positive
-from touchanything.devices.output_safety import add_overwrite_argument
+from touchanything.core.errors import require_finite_positive
+from touchanything.core.output_safety import add_overwrite_argument
 
 SHOWN_METRICS = ("temporal_accuracy", "contact_iou", "volumetric_iou", "mae")
 
@@ -44,16 +44,16 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 def open_live_session(scene: Scene | Path, device: str | None = None, picked: PickedSetting | None = None,
                       onnx: Path | None = None):
-    """The scene's (a Scene, or a scene file to read) rig and model as a LiveSession (not started), the model on `device` when given (else the
-    scene's), the `picked` setting's model, tier and views, or the `onnx` export (`export_choice`), instead of
-    the scene's when given; a model that fails to load leaves the session without predictions, with the reason
+    """The scene's (a Scene, or a scene file to read) rig and model as a LiveSession (not started), the model on
+    `device` when given (else the scene's), the `picked` setting's model, tier and views, or the `onnx` export
+    (`export_choice`), instead of the scene's when given; a model that fails to load leaves the session without predictions, with the reason
     in its message (a folder that is no export is a UserError)."""
     from touchanything.app.sessions.engine_choice import build_engine, export_choice
     from touchanything.app.sessions.live_session import LiveSession
     from touchanything.app.sessions.scene import Scene, read_scene
     from touchanything.app.sessions.scene_rig import LiveRig
-    from touchanything.devices.errors import UserError
-    from touchanything.devices.snapshot import VIEW_NAMES
+    from touchanything.core.errors import UserError
+    from touchanything.core.snapshot import VIEW_NAMES
 
     scene = scene if isinstance(scene, Scene) else read_scene(scene)
     choice = scene.model if device is None else scene.model.with_setting(device=device)
@@ -74,7 +74,7 @@ def open_live_session(scene: Scene | Path, device: str | None = None, picked: Pi
 
 def run_headless(session, seconds: float) -> dict:
     """Run the started session for `seconds`, printing one status line per second; returns a summary."""
-    from touchanything.devices.view_sets import VIEW_LABELS
+    from touchanything.core.view_sets import VIEW_LABELS
     from touchanything.viz.frame_facts import metric_text
     from touchanything.viz.hand_projection import pose_label
 
@@ -109,15 +109,15 @@ def run_headless(session, seconds: float) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from touchanything.app.sessions.scene import read_scene
     from touchanything.app.sessions.rerun_sink import RerunSink, seconds_since_first
+    from touchanything.app.sessions.scene import read_scene
     from touchanything.viz.dashboard.dashboard import Dashboard
     from touchanything.viz.display import display_problem
 
     if args.headless:
         require_finite_positive("--seconds", args.seconds)
     if not args.headless and (problem := display_problem()):
-        from touchanything.devices.errors import UserError
+        from touchanything.core.errors import UserError
 
         raise UserError(f"cannot open the dashboard: {problem}; use --headless")
     request = setting_request(args)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.devices.output_safety import add_overwrite_argument
+from touchanything.core.output_safety import add_overwrite_argument
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:

@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from touchanything.devices.errors import require_finite_positive
+from touchanything.core.errors import require_finite_positive
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -21,8 +21,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from touchanything.app.sessions.scene import read_scene, scene_inputs
     from touchanything.app.sessions.scene_rig import LiveRig
+    from touchanything.core.output_safety import check_output, check_outside
     from touchanything.devices.episodes.episode_writer import check_new_episode
-    from touchanything.devices.output_safety import check_output, check_outside
     from touchanything.devices.rig.recorder import Recorder, RecorderConfig
 
     scene = read_scene(args.scene)

@@ -19,9 +19,9 @@ from touchanything.app.sessions.engine_choice import (
 )
 from touchanything.app.sessions.rerun_output import add_rerun_arguments, rerun_target
 from touchanything.app.sessions.setting_choice import add_setting_arguments, picked_setting, setting_request
-from touchanything.devices.output_safety import add_overwrite_argument
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.view_sets import VIEW_HELP
+from touchanything.core.output_safety import add_overwrite_argument
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.view_sets import VIEW_HELP
 from touchanything.inference.engine.engine_setting import RUNTIMES
 from touchanything.viz.display import display_problem
 

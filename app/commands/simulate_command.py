@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from touchanything.devices.output_safety import add_overwrite_argument, check_output, replacing_folder
+from touchanything.core.output_safety import add_overwrite_argument, check_output, replacing_folder
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:

@@ -4,6 +4,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from touchanything.core.errors import DataError, UserError
+from touchanything.core.output_safety import add_overwrite_argument, check_output
 from touchanything.devices.episodes.dataset_split import (
     SPLIT_FILE,
     SPLIT_KEYS,
@@ -15,8 +17,6 @@ from touchanything.devices.episodes.dataset_split import (
     read_split,
     write_split,
 )
-from touchanything.devices.errors import DataError, UserError
-from touchanything.devices.output_safety import add_overwrite_argument, check_output
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:

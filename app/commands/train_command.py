@@ -7,7 +7,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from touchanything.devices.output_safety import add_overwrite_argument, check_output
+from touchanything.core.output_safety import add_overwrite_argument, check_output
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:

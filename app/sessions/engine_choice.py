@@ -8,8 +8,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from touchanything.app.sessions.bundled import MODELS_DIR, bundled_models
-from touchanything.devices.errors import UserError
-from touchanything.devices.view_sets import parse_view_set
+from touchanything.core.errors import UserError
+from touchanything.core.view_sets import parse_view_set
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.onnx_manifest import export_source
 from touchanything.inference.model.model_card import read_card

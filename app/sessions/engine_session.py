@@ -37,11 +37,11 @@ from touchanything.app.sessions.engine_choice import (
 )
 from touchanything.app.sessions.rerun_sink import RerunSink
 from touchanything.app.sessions.setting_choice import display_atlas, running_accuracy
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import POSE_FROM_CAMERA, VIEW_NAMES, Snapshot
+from touchanything.core.tactile_layout import TactileLayout
+from touchanything.core.view_sets import views_used
 from touchanything.devices.rate_meter import RateMeter, StageMeans
-from touchanything.devices.snapshot import POSE_FROM_CAMERA, VIEW_NAMES, Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.devices.view_sets import views_used
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.live_engine import LiveEngine
 from touchanything.inference.engine.prediction import Prediction

@@ -7,6 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.errors import DataError, UserError, failure_line
+from touchanything.core.snapshot import HANDS, TRACKER_ROLES, VIEW_NAMES
+from touchanything.core.tactile_layout import TactileLayout
+from touchanything.core.view_sets import VIEW_LABELS, view_set_name
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import (
@@ -20,10 +24,6 @@ from touchanything.devices.episodes.episode_verify import verify_episode
 from touchanything.devices.episodes.lerobot_checks import metadata_problems
 from touchanything.devices.episodes.lerobot_episode import find_lerobot_episodes
 from touchanything.devices.episodes.raw_episode import is_raw_episode
-from touchanything.devices.errors import DataError, UserError, failure_line
-from touchanything.devices.snapshot import HANDS, TRACKER_ROLES, VIEW_NAMES
-from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.devices.view_sets import VIEW_LABELS, view_set_name
 from touchanything.inference.evaluation.metrics import contact_frames
 
 ROOT_PROBLEMS_SHOWN = 3

@@ -11,11 +11,11 @@ from touchanything.app.sessions.bundled import OUTPUT_DIR
 from touchanything.app.sessions.engine_choice import ModelChoice
 from touchanything.app.sessions.engine_session import EngineSession
 from touchanything.app.sessions.scene_rig import LiveRig
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import Snapshot
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.rig.live_tactile import LiveTactile
 from touchanything.devices.rig.recorder import Recorder, RecorderConfig
-from touchanything.devices.snapshot import Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.viz.dashboard.dashboard_state import SourceStatus
 

@@ -10,12 +10,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 from touchanything.app.sessions.replay_export import ReplaySummary
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import check_output, replacing
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig
 from touchanything.devices.episodes.episode_loader import open_video_episode
 from touchanything.devices.episodes.episode_streams import hands_row
 from touchanything.devices.episodes.jsonl import json_line
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import check_output, replacing
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
 
 

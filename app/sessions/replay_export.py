@@ -10,13 +10,13 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.snapshot import Snapshot
+from touchanything.core.tactile_layout import TactileLayout
+from touchanything.core.view_sets import views_used
 from touchanything.devices.camera_pose.estimator import STAGE
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.video_io import VideoReader
 from touchanything.devices.rig.replay import ReplaySource
-from touchanything.devices.snapshot import Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.devices.view_sets import views_used
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.metrics import ground_truth_for_metrics

@@ -6,10 +6,10 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import check_output
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import check_output
 from touchanything.viz.comparison_video import is_comparison_video
 
 

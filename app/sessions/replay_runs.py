@@ -26,11 +26,11 @@ from touchanything.app.sessions.replay_session import ReplaySession
 from touchanything.app.sessions.rerun_output import episode_name, finish, open_recording, session_properties
 from touchanything.app.sessions.rerun_sink import RerunSink
 from touchanything.app.sessions.setting_choice import display_atlas, running_accuracy
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import is_plain_video, open_episode
-from touchanything.devices.errors import UserError
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.dashboard.dashboard import Dashboard
 from touchanything.viz.display import display_problem
 from touchanything.viz.rerun_recording import RerunTarget

@@ -10,9 +10,9 @@ import numpy as np
 
 from touchanything.app.sessions.engine_choice import ModelChoice
 from touchanything.app.sessions.engine_session import EngineSession
+from touchanything.core.snapshot import Snapshot
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.snapshot import Snapshot
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
 from touchanything.viz.dashboard.dashboard_state import Playback, SourceStatus

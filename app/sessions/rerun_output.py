@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from touchanything.app.sessions.engine_choice import ModelChoice, model_label
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import check_output, replacing
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import check_output, replacing
 
 if TYPE_CHECKING:  # rerun, torch and the episode readers are imported where used: --help loads this module
     from touchanything.devices.episodes.episode import Episode

@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.live_engine import ENGINE_NICENESS, lower_priority
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.evaluation.metrics import CONTACT_THRESHOLD

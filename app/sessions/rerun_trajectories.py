@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from touchanything.app.sessions.rerun_output import merge_recordings
+from touchanything.core.snapshot import TRACKER_ROLES, VIEW_NAMES
+from touchanything.core.temporary_files import mark, temporary_path, unmark
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.snapshot import TRACKER_ROLES, VIEW_NAMES
-from touchanything.devices.temporary_files import mark, temporary_path, unmark
 from touchanything.inference.evaluation.running_metrics import RunningMetrics
 from touchanything.viz.frame_facts import frame_facts
 from touchanything.viz.rerun_recording import RerunRecording, RerunTarget

@@ -35,9 +35,10 @@ from typing import Any
 
 from touchanything.app.sessions.engine_choice import ModelChoice, choose, default_checkpoint, export_choice
 from touchanything.app.sessions.scene_values import check_types
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import HANDS, VIEW_NAMES
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig
 from touchanything.devices.camera_pose.model_file import read_model
-from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.jq_glove import JQGloveConfig
 from touchanything.devices.hardware.openvr_trackers import OpenVRTrackersConfig
 from touchanything.devices.hardware.registry import CameraConfig, device_kind
@@ -45,7 +46,6 @@ from touchanything.devices.hardware.rokoko_udp import RokokoConfig
 from touchanything.devices.rig.recorder import valid_fsync_s
 from touchanything.devices.rig.rig_clock import RigClockConfig
 from touchanything.devices.sim.device_emulator import SimulatedRigConfig
-from touchanything.devices.snapshot import HANDS, VIEW_NAMES
 from touchanything.inference.engine.engine_setting import EngineSetting
 
 MODEL_FILES = ("checkpoint", "config", "onnx_dir")

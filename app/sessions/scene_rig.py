@@ -8,8 +8,8 @@ from dataclasses import dataclass
 from functools import partial
 
 from touchanything.app.sessions.scene import Scene
+from touchanything.core.errors import UserError
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig
-from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.registry import create_device
 from touchanything.devices.hardware.threaded_source import ThreadedSource
 from touchanything.devices.rig.pose_transform import PoseCalibration, mocap_to_model_frame

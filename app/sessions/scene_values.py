@@ -8,7 +8,7 @@ import typing
 from pathlib import Path
 from typing import Any
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 
 TYPE_NAMES = {int: "a whole number", float: "a number", str: "text", bool: "true or false", Path: "a path",
               dict: "a table", tuple: "a list", list: "a list"}

@@ -12,7 +12,7 @@ from pathlib import Path
 from touchanything.app.sessions.budget_watch import BudgetWatch
 from touchanything.app.sessions.bundled import ATLAS_FILE, SAMPLE_DIR, bundled_models
 from touchanything.app.sessions.engine_choice import ModelChoice, is_bundled
-from touchanything.devices.errors import UserError, require_finite_positive
+from touchanything.core.errors import UserError, require_finite_positive
 from touchanything.inference.engine.engine_setting import NAME_HELP
 from touchanything.inference.evaluation.atlas import (
     PROBE_FRAMES,

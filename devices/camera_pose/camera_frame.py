@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from touchanything.devices.hand_pose import JOINTS_PER_HAND, project_wilor, wilor_focal_px
+from touchanything.core.hand_pose import JOINTS_PER_HAND, project_wilor, wilor_focal_px
 
 MIN_DEPTH = 1e-3
 """A fitted hand whose nearest joint is not this far in front of the camera is refused (degenerate fit)."""

@@ -21,13 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.errors import UserError
+from touchanything.core.hand_pose import JOINTS_PER_HAND
+from touchanything.core.snapshot import POSE_FROM_CAMERA
 from touchanything.devices.camera_pose.camera_frame import reprojection_px, to_camera_frame
 from touchanything.devices.camera_pose.hand_tracks import HandDetection, HandTracks, TrackedHands
 from touchanything.devices.camera_pose.model_file import read_model
-from touchanything.devices.errors import UserError
-from touchanything.devices.hand_pose import JOINTS_PER_HAND
 from touchanything.devices.quiet_stderr import quiet_stderr
-from touchanything.devices.snapshot import POSE_FROM_CAMERA
 
 STAGE = "hand pose"
 """The estimator's stage name in per-stage times."""

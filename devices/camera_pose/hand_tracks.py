@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from touchanything.devices.hand_pose import JOINTS_PER_HAND
+from touchanything.core.hand_pose import JOINTS_PER_HAND
 
 LABELS = ("Left", "Right")
 """MediaPipe's handedness labels in the model's hand order (an unmirrored image)."""

@@ -17,7 +17,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 
 SOURCE_WHEEL = "mediapipe==0.10.21"
 MEMBERS = {

@@ -7,12 +7,12 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
+from touchanything.core.errors import DataError, UserError, failure_line
+from touchanything.core.output_safety import check_outside, check_report_folder, write_text
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split, write_split
 from touchanything.devices.episodes.episode_loader import find_raw_episodes
 from touchanything.devices.episodes.hdf5_convert import ConversionResult, convert_trajectory, output_path, source_name
 from touchanything.devices.episodes.hdf5_output import written_from
-from touchanything.devices.errors import DataError, UserError, failure_line
-from touchanything.devices.output_safety import check_outside, check_report_folder, write_text
 
 CONVERSION_REPORT = "conversion_report.txt"
 QUALITY_REPORT = "quality_report.txt"

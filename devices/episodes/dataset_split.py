@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.errors import DataError, UserError, failure_line, require_fraction, require_seed
-from touchanything.devices.json_files import read_json_file
-from touchanything.devices.output_safety import write_text
+from touchanything.core.errors import DataError, UserError, failure_line, require_fraction, require_seed
+from touchanything.core.json_files import read_json_file
+from touchanything.core.output_safety import write_text
 
 SPLIT_KEYS = ("train", "val", "test_seen", "test_unseen")
 SPLIT_FILE = "split.json"

@@ -7,9 +7,9 @@ from typing import Protocol
 
 import numpy as np
 
+from touchanything.core.snapshot import FPS, FRAME_PERIOD_US, VIEW_NAMES
 from touchanything.devices.episodes.episode_files import PressureFile
 from touchanything.devices.episodes.episode_streams import GloveStream, HandStream, TrackerStream
-from touchanything.devices.snapshot import FPS, FRAME_PERIOD_US, VIEW_NAMES
 
 
 class FrameSource(Protocol):

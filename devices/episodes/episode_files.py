@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.errors import DataError, describe
-from touchanything.devices.json_files import read_json_file
-from touchanything.devices.snapshot import HANDS
+from touchanything.core.errors import DataError, describe
+from touchanything.core.json_files import read_json_file
+from touchanything.core.snapshot import HANDS
 
 GRID_KEYS = ("left_pressure_grid", "right_pressure_grid")
 MAXIMA_KEYS = ("tactile_max_left", "tactile_max_right", "bend_max_left", "bend_max_right")

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.errors import DataError
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.hdf5_episode import open_hdf5_episode
@@ -15,7 +16,6 @@ from touchanything.devices.episodes.lerobot_episode import find_lerobot_episodes
 from touchanything.devices.episodes.lerobot_format import is_lerobot_root, parse_address
 from touchanything.devices.episodes.raw_episode import is_raw_episode, open_raw_episode
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.devices.errors import DataError
 
 HDF5_SUFFIXES = (".hdf5", ".h5")
 MAX_DEPTH = 4

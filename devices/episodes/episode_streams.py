@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.hand_pose import JOINTS_PER_HAND, hand_from_json
+from touchanything.core.snapshot import HANDS, TRACKER_ROLES
 from touchanything.devices.episodes.jsonl import FieldProblems, read_jsonl_lines, where
-from touchanything.devices.hand_pose import JOINTS_PER_HAND, hand_from_json
-from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 
 IDENTITY_WXYZ = (1.0, 0.0, 0.0, 0.0)
 

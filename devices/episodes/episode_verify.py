@@ -11,9 +11,9 @@ from pathlib import Path
 
 import h5py
 
+from touchanything.core.errors import describe, failure_line
 from touchanything.devices.episodes.episode_loader import is_hdf5_path, open_episode
 from touchanything.devices.episodes.hdf5_episode import H5_ERRORS
-from touchanything.devices.errors import describe, failure_line
 
 
 def _reason(exc: BaseException) -> str:

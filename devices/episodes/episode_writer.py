@@ -26,6 +26,11 @@ from typing import IO
 
 import numpy as np
 
+from touchanything.core.errors import DataError, UserError
+from touchanything.core.output_safety import fsync_fd, fsync_path, rename_new, replacing
+from touchanything.core.snapshot import FRAME_PERIOD_US
+from touchanything.core.tactile_layout import TactileLayout
+from touchanything.core.temporary_files import mark, recorded_stream, temporary_path, unmark
 from touchanything.devices.episodes.episode_files import write_pressure_grids
 from touchanything.devices.episodes.episode_streams import glove_row, hands_row, read_glove, trackers_row
 from touchanything.devices.episodes.jsonl import json_line
@@ -39,12 +44,7 @@ from touchanything.devices.episodes.raw_episode import (
     episode_file,
 )
 from touchanything.devices.episodes.video_io import VideoWriter
-from touchanything.devices.errors import DataError, UserError
-from touchanything.devices.output_safety import fsync_fd, fsync_path, rename_new, replacing
-from touchanything.devices.snapshot import FRAME_PERIOD_US
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import PressureGrids, TactileConfig, process_raw
-from touchanything.devices.temporary_files import mark, recorded_stream, temporary_path, unmark
 
 EPISODE_FILES = (*VIDEO_FILES.values(), WILOR_FILE, ROKOKO_FILE, VIVE_FILE, GLOVE_FILE, GRIDS_FILE)
 """Every file `RawEpisodeWriter` may create."""

@@ -13,6 +13,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from touchanything.core.errors import DataError, failure_line
 from touchanything.devices.episodes.episode import Episode, problems_in_brief
 from touchanything.devices.episodes.episode_files import MAXIMA_KEYS, read_masks, read_quality
 from touchanything.devices.episodes.hdf5_episode import (
@@ -34,7 +35,6 @@ from touchanything.devices.episodes.raw_episode import (
     WILOR_FILE,
     open_raw_episode,
 )
-from touchanything.devices.errors import DataError, failure_line
 
 CONVERTER = "touchanything convert"
 """The completion mark's value in the trajectories `convert` writes (`hdf5_output`)."""

@@ -10,11 +10,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from touchanything.core.errors import DataError, describe
+from touchanything.core.hand_pose import hands_valid
 from touchanything.devices.episodes.episode import Episode, align_note, synthetic_timestamps
 from touchanything.devices.episodes.episode_files import PressureFile, range_problem, scalar_attrs
 from touchanything.devices.episodes.episode_streams import HandStream, TrackerStream
-from touchanything.devices.errors import DataError, describe
-from touchanything.devices.hand_pose import hands_valid
 
 IMAGE_KEYS = {"ego": "images/chest_color", "wrist_left": "images/left_color", "wrist_right": "images/right_color"}
 TRACKER_KEYS = ("poses/chest_pose", "poses/left_pose", "poses/right_pose")

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import h5py
 
-from touchanything.devices.output_safety import replacing
+from touchanything.core.output_safety import replacing
 
 WRITTEN_MARK = "touchanything_written"
 """Root attribute of every HDF5 file the project wrote to the end (its value names the writer)."""

@@ -12,7 +12,7 @@ import json
 from pathlib import Path
 from typing import NamedTuple
 
-from touchanything.devices.errors import DataError, describe
+from touchanything.core.errors import DataError, describe
 
 MAX_GAP = 1_000_000
 """A `frame_index` further ahead of the line order than this (about 9 hours at 30 fps) is not followed."""

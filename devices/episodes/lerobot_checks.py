@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.errors import describe
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.lerobot_episode import read_info
 from touchanything.devices.episodes.lerobot_stats import QUANTILE_KEYS
-from touchanything.devices.errors import describe
 
 COUNT_KEYS = ("total_episodes", "total_frames", "total_tasks")
 STAT_KEYS = ("min", "max", "mean", "std", "count", *QUANTILE_KEYS)

@@ -24,15 +24,15 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
+from touchanything.core.errors import DataError, describe
+from touchanything.core.hand_pose import hands_valid
+from touchanything.core.json_files import read_json_file
+from touchanything.core.snapshot import HANDS
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_files import PressureFile, scalar_attrs
 from touchanything.devices.episodes.episode_streams import HandStream, TrackerStream
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.devices.errors import DataError, describe
-from touchanything.devices.hand_pose import hands_valid
-from touchanything.devices.json_files import read_json_file
-from touchanything.devices.snapshot import HANDS
 
 
 class LeRobotFrames:

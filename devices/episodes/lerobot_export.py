@@ -15,14 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.errors import DataError, UserError
+from touchanything.core.output_safety import replacing_folder
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.episodes.episode import Episode, problems_in_brief
 from touchanything.devices.episodes.episode_loader import find_empty_folders, find_hdf5_files, find_raw_episodes, is_hdf5_path, open_episode
 from touchanything.devices.episodes.lerobot_writer import LeRobotWriter
-from touchanything.devices.errors import DataError, UserError
-from touchanything.devices.output_safety import replacing_folder
-from touchanything.devices.tactile_layout import TactileLayout
 
 
 @dataclass

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.hand_pose import JOINT_NAMES, JOINTS_PER_HAND
-from touchanything.devices.snapshot import HANDS, TRACKER_ROLES, VIEW_NAMES
-from touchanything.devices.tactile_layout import GRID_SIZE
+from touchanything.core.hand_pose import JOINT_NAMES, JOINTS_PER_HAND
+from touchanything.core.snapshot import HANDS, TRACKER_ROLES, VIEW_NAMES
+from touchanything.core.tactile_layout import GRID_SIZE
 
 CODEBASE_VERSION = "v3.0"
 INFO_PATH, STATS_PATH, TASKS_PATH = Path("meta/info.json"), Path("meta/stats.json"), Path("meta/tasks.parquet")

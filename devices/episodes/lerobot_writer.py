@@ -18,11 +18,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from touchanything.core.snapshot import TRACKER_ROLES
 from touchanything.devices.episodes import lerobot_format as fmt
 from touchanything.devices.episodes.episode import Episode, FrameSource
 from touchanything.devices.episodes.lerobot_stats import aggregate, as_json, feature_stats, sample_indices, video_stats
 from touchanything.devices.episodes.video_io import VideoWriter
-from touchanything.devices.snapshot import TRACKER_ROLES
 
 VIDEO_CRF = 20
 VIDEO_OPTIONS = {"g": "2", "bf": "0"}

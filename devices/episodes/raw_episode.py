@@ -8,12 +8,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from touchanything.core.errors import DataError, describe
+from touchanything.core.temporary_files import recorded_stream
 from touchanything.devices.episodes.episode import Episode, align_note, synthetic_timestamps
 from touchanything.devices.episodes.episode_files import read_pressure_grids
 from touchanything.devices.episodes.episode_streams import read_glove, read_hands, read_trackers
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.devices.errors import DataError, describe
-from touchanything.devices.temporary_files import recorded_stream
 
 VIDEO_FILES = {"ego": "chest.mp4", "wrist_left": "left.mp4", "wrist_right": "right.mp4"}
 WILOR_FILE = "wilor_hands.json"

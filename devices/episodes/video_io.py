@@ -13,8 +13,8 @@ import av
 import cv2
 import numpy as np
 
-from touchanything.devices.errors import DataError
-from touchanything.devices.output_safety import fsync_fd
+from touchanything.core.errors import DataError
+from touchanything.core.output_safety import fsync_fd
 
 MAX_FPS = 240
 """A frame rate outside 1..MAX_FPS (a damaged header: 30/65537 was seen) is not believed: the guessed rate, else

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from touchanything.devices.errors import DeviceNotConnectedError
+from touchanything.core.errors import DeviceNotConnectedError
 from touchanything.devices.hardware.threaded_source import (
     DEFAULT_BACKOFF_S,
     SourceCounters,

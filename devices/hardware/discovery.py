@@ -21,13 +21,13 @@ from typing import Any, Generic, TypeVar
 
 import cv2
 
+from touchanything.core.snapshot import HANDS
 from touchanything.devices.hardware.camera_source import CameraFormat
 from touchanything.devices.hardware.jq_glove import SERIAL_BY_ID, SERIAL_ERRORS, open_failure, open_port
 from touchanything.devices.hardware.jq_protocol import JQStreamParser
 from touchanything.devices.hardware.opencv_camera import OpenCVCameraConfig, negotiated_format, request_format
 from touchanything.devices.hardware.openvr_trackers import INSTALL_HINT
 from touchanything.devices.quiet_stderr import quiet_opencv
-from touchanything.devices.snapshot import HANDS
 
 T = TypeVar("T")
 

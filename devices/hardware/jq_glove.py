@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import serial
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.devices.hardware.jq_protocol import SIDE_SENSORS, JQParserCounters, JQSample, JQStreamParser
 from touchanything.devices.hardware.threaded_source import (
     DEFAULT_BACKOFF_S,

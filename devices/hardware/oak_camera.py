@@ -33,7 +33,7 @@ os.environ.setdefault("DEPTHAI_LEVEL", "error")  # else importing depthai logs "
 import depthai as dai  # noqa: E402
 import numpy as np
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.devices.hardware.camera_source import CameraFormat, CameraSource
 from touchanything.devices.hardware.threaded_source import (
     DEFAULT_BACKOFF_S,

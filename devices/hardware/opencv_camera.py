@@ -26,7 +26,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.devices.hardware.camera_source import CameraFormat, CameraSource
 from touchanything.devices.hardware.threaded_source import (
     DEFAULT_BACKOFF_S,

@@ -22,7 +22,8 @@ from typing import Any, Protocol
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import TRACKER_ROLES
 from touchanything.devices.hardware.threaded_source import (
     DEFAULT_BACKOFF_S,
     DeviceLost,
@@ -31,7 +32,6 @@ from touchanything.devices.hardware.threaded_source import (
     check_backoff,
     now_us,
 )
-from touchanything.devices.snapshot import TRACKER_ROLES
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 INSTALL_HINT = "OpenVR trackers need the `openvr` package: .venv/bin/pip install -e '.[trackers]' in the checkout"

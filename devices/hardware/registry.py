@@ -11,8 +11,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from touchanything.core.errors import UserError
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig
-from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.camera_hands import CameraHands
 from touchanything.devices.hardware.jq_glove import JQGlove, JQGloveConfig
 from touchanything.devices.hardware.oak_camera import OakCamera, OakCameraConfig

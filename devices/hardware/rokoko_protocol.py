@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import lz4.frame
 import numpy as np
 
-from touchanything.devices.hand_pose import JOINTS_PER_HAND
-from touchanything.devices.snapshot import HANDS
+from touchanything.core.hand_pose import JOINTS_PER_HAND
+from touchanything.core.snapshot import HANDS
 
 LZ4_MAGIC = b"\x04\x22\x4d\x18"
 MAX_JSON_BYTES = 4 * 1024 * 1024

@@ -10,10 +10,10 @@ from __future__ import annotations
 import socket
 from dataclasses import dataclass
 
-from touchanything.devices.errors import DeviceNotConnectedError, UserError
+from touchanything.core.errors import DeviceNotConnectedError, UserError
+from touchanything.core.snapshot import HANDS
 from touchanything.devices.hardware.rokoko_protocol import RokokoFrame, RokokoProtocolError, decode_datagram
 from touchanything.devices.hardware.threaded_source import SourceCounters, ThreadedSource, now_us
-from touchanything.devices.snapshot import HANDS
 
 UDP_MAX_PAYLOAD = 65507
 """The largest UDP payload over IPv4."""

@@ -34,7 +34,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
-from touchanything.devices.errors import DeviceAlreadyConnectedError, UserError
+from touchanything.core.errors import DeviceAlreadyConnectedError, UserError
 from touchanything.devices.rate_meter import RateMeter
 from touchanything.devices.worker_thread import start_worker, stop_worker
 

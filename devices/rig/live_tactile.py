@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from touchanything.devices.snapshot import HANDS
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.snapshot import HANDS
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import TactileConfig, repair_column
 
 

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from touchanything.devices.errors import UserError
-from touchanything.devices.hand_pose import JOINTS_PER_HAND, pose_is_valid, wilor_focal_px
+from touchanything.core.errors import UserError
+from touchanything.core.hand_pose import JOINTS_PER_HAND, pose_is_valid, wilor_focal_px
 
 ORTHONORMAL_TOLERANCE = 1e-3
 """How far tracking_from_mocap's 3×3 part may be from orthonormal (typed-in cosines have ~1e-4 error)."""

@@ -35,12 +35,12 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import TRACKER_ROLES, Snapshot
 from touchanything.devices.episodes.episode_streams import IDENTITY_WXYZ
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.episodes.raw_episode import VIDEO_FILES, episode_file, is_raw_episode
 from touchanything.devices.episodes.video_io import VideoReader
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import TRACKER_ROLES, Snapshot
 
 _STOP = object()
 LIVE_PRESET = "ultrafast"

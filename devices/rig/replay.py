@@ -20,10 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import POSE_FROM_CAMERA, POSE_FROM_ROKOKO, POSE_FROM_WILOR, TRACKER_ROLES, VIEW_NAMES, Snapshot
 from touchanything.devices.camera_pose.estimator import CameraPoseConfig, HandPoseEstimator, hands_found
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import POSE_FROM_CAMERA, POSE_FROM_ROKOKO, POSE_FROM_WILOR, TRACKER_ROLES, VIEW_NAMES, Snapshot
 
 POSE_SOURCES = ("wilor", "rokoko", "camera")
 FILE_POSES = {"wilor": POSE_FROM_WILOR, "rokoko": POSE_FROM_ROKOKO}

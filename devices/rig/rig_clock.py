@@ -17,10 +17,10 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import Snapshot
 from touchanything.devices.hardware.threaded_source import SourceCounters, ThreadedSource, now_us
 from touchanything.devices.rig.rig_inputs import RigInput, build_snapshot, fill_order
-from touchanything.devices.snapshot import Snapshot
 
 Subscriber = Callable[[Snapshot], None]
 

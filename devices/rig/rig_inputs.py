@@ -28,8 +28,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from touchanything.devices.hand_pose import JOINTS_PER_HAND
-from touchanything.devices.snapshot import HANDS, POSE_FROM_CAMERA, POSE_FROM_MOCAP, VIEW_NAMES, Snapshot
+from touchanything.core.hand_pose import JOINTS_PER_HAND
+from touchanything.core.snapshot import HANDS, POSE_FROM_CAMERA, POSE_FROM_MOCAP, VIEW_NAMES, Snapshot
 
 MocapToModel = Callable[[np.ndarray, np.ndarray, dict[str, np.ndarray]], tuple[np.ndarray, np.ndarray]]
 """(mocap joints (2, 21, 3) float32, hands present (2,) bool, trackers {role: (7,)}) → (joints (2, 21, 3)

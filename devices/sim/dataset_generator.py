@@ -15,15 +15,15 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.errors import UserError, require_seed
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.view_sets import VIEW_LABELS
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, partition_seen
-from touchanything.devices.errors import UserError, require_seed
 from touchanything.devices.sim.catalogue import SCENES, UNSEEN_OBJECTS
 from touchanything.devices.sim.episode_cache import restore, store
 from touchanything.devices.sim.episode_generator import EpisodeSpec, generate_episode
 from touchanything.devices.sim.episode_stats import CAMERAS, EpisodeStats
 from touchanything.devices.sim.pose_ambiguity import pose_statistics
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.view_sets import VIEW_LABELS
 
 MAX_SECONDS = 3600.0
 """The longest episode (an hour: 108,000 frames of three views, tens of GB as raw video)."""

@@ -16,14 +16,14 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import HANDS, TRACKER_ROLES
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.openvr_trackers import TrackerReading
 from touchanything.devices.hardware.threaded_source import ThreadedSource, now_us
 from touchanything.devices.sim.glove_serial import SimulatedGloveSerial, episode_glove_provider
 from touchanything.devices.sim.rokoko_sender import RokokoSenderConfig, SimulatedRokokoSender, episode_hands_provider
-from touchanything.devices.snapshot import HANDS, TRACKER_ROLES
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ those episodes from the cache and simulates only the rest.
 
 An episode is a pure function of its `EpisodeSpec` (scene, length, seed, unseen object, trajectory id; episode i of a
 seed is the same whatever the number of episodes) and of the code that makes and writes it, so the key is the
-spec and the digest is the SHA-256 of the devices layer's sources (the simulator and the writers it uses): a
+spec and the digest is the SHA-256 of the sources of the devices layer and of `core` below it: a
 change there never serves an episode that code would now make differently. Each entry holds the episode's
 folder (its files copied with their metadata) and its statistics (`stats.pkl`), written under a temporary name
 and renamed, so a killed writer leaves no entry that looks complete.
@@ -28,11 +28,13 @@ STATS_FILE, EPISODE_DIR = "stats.pkl", "episode"
 @functools.cache
 def simulator_digest() -> str:
     """SHA-256 of the code an episode comes from: every source and layout file of the devices layer (the simulator,
-    and the episode writers, tactile pipeline and layout it writes through), by relative path and content."""
+    and the episode writers and tactile pipeline it writes through) and of the shared records below it (snapshot,
+    tactile layout, output rule), by relative path and content."""
     digest = hashlib.sha256()
-    layer = Path(__file__).resolve().parents[1]
-    for path in sorted(p for p in layer.rglob("*") if p.suffix in (".py", ".json") and "__pycache__" not in p.parts):
-        digest.update(path.relative_to(layer).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    package = Path(__file__).resolve().parents[2]
+    for layer in (package / "core", package / "devices"):
+        for path in sorted(p for p in layer.rglob("*") if p.suffix in (".py", ".json") and "__pycache__" not in p.parts):
+            digest.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()
 
 

@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.hand_pose import wilor_focal_px
+from touchanything.core.snapshot import FPS, HANDS, VIEW_NAMES
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_files import write_camera_matrices
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
 from touchanything.devices.episodes.raw_episode import CAMERA_FILE
-from touchanything.devices.hand_pose import wilor_focal_px
 from touchanything.devices.sim.cameras import HEIGHT, WIDTH, Camera, head_camera, wrist_camera
 from touchanything.devices.sim.catalogue import BIMANUAL_ACTIONS, CATALOGUE, PRESS, REST, SCENES, SIZE_SCALE, UNSEEN_OBJECTS
 from touchanything.devices.sim.episode_stats import CAMERAS, EpisodeStats
@@ -24,8 +26,6 @@ from touchanything.devices.sim.shapes import FaceSet, Shape
 from touchanything.devices.sim.task_scripts import NEAR_MISSES, Planner
 from touchanything.devices.sim.touch import Glove, touch_frame
 from touchanything.devices.sim.world import make_object, object_timeline, static_faces
-from touchanything.devices.snapshot import FPS, HANDS, VIEW_NAMES
-from touchanything.devices.tactile_layout import TactileLayout
 from touchanything.devices.tactile_pipeline import TactileConfig
 
 WILOR_FOCAL = wilor_focal_px(WIDTH, HEIGHT)

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.snapshot import HANDS
 from touchanything.devices.sim.cameras import Camera
 from touchanything.devices.sim.hand_model import HandState
 from touchanything.devices.sim.shapes import Shape
 from touchanything.devices.sim.visibility import visible
-from touchanything.devices.snapshot import HANDS
 
 CAMERAS = ("chest", "left", "right")
 """The cameras' names in `camera_matrix.txt` and the dataset card, in `VIEW_NAMES` order."""

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import HANDS
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.jq_protocol import FIRST_HALF, PACKET_BYTES, encode_sample, sensor_type
-from touchanything.devices.snapshot import HANDS
 
 SampleProvider = Callable[[int], tuple[np.ndarray, np.ndarray]]
 """Sample index → (raw (256,) uint8, quat_wxyz (4,) float32)."""

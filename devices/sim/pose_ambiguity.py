@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from touchanything.core.snapshot import HANDS
 from touchanything.devices.sim.episode_stats import EpisodeStats
-from touchanything.devices.snapshot import HANDS
 
 SAMPLE_EVERY = 5
 APART = 15

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from touchanything.core.errors import UserError
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.errors import UserError
 from touchanything.devices.hardware.rokoko_protocol import encode_datagram
 from touchanything.devices.worker_thread import start_worker, stop_worker
 

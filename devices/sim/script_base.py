@@ -8,11 +8,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from touchanything.core.snapshot import FPS, HANDS
 from touchanything.devices.sim.hand_model import FINGER_COLUMNS, FINGER_ORDER, PALM_CENTRE, PALM_HALF, THUMB_PAD_ROWS, HandState, hand_state
 from touchanything.devices.sim.motion import HandTrack, frame_rotation
 from touchanything.devices.sim.shapes import Shape, pose_at
 from touchanything.devices.sim.touch import world_sdf
-from touchanything.devices.snapshot import FPS, HANDS
 
 PALM_SURFACE = np.array([PALM_CENTRE[0], PALM_CENTRE[1], PALM_HALF[2]])
 REST_FLEX = np.array([0.2, 0.25, 0.25, 0.25, 0.25])

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from touchanything.core.snapshot import HANDS
 from touchanything.devices.sim.cameras import wrist_camera
 from touchanything.devices.sim.catalogue import AIR_PUSH, HOVER, HOVER_PRESS, PRESS, PUSH, REST, REST_HOVER, SLIDE
 from touchanything.devices.sim.hand_model import hand_state
@@ -15,7 +16,6 @@ from touchanything.devices.sim.script_base import CLEARANCE, POINT_FLEX, UP, Scr
 from touchanything.devices.sim.shapes import pose_at
 from touchanything.devices.sim.touch import world_sdf
 from touchanything.devices.sim.world import TABLE_Y
-from touchanything.devices.snapshot import HANDS
 
 HOVER_GAP = (0.01, 0.03)
 """A hovering fingertip stays this far (metres) above the surface at its lowest."""

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from touchanything.core.snapshot import HANDS
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.sim.hand_model import HandState, hand_state
 from touchanything.devices.sim.shapes import Shape, inverse, transform
-from touchanything.devices.snapshot import HANDS
-from touchanything.devices.tactile_layout import TactileLayout
 
 DEPTH_SCALE = 0.005
 FULL_SCALE_RAW = 235.0

@@ -22,9 +22,9 @@ import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES
-from touchanything.devices.view_sets import VIEW_SETS, view_set_name
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.view_sets import VIEW_SETS, view_set_name
 from touchanything.inference.model.torch_device import check_precision, resolve_device
 
 if TYPE_CHECKING:

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import Snapshot
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.inference.engine.engine_runtime import Runtime
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.prediction import Prediction

@@ -8,7 +8,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.inference.model.multi_view import view_slots
 from touchanything.inference.model.touch_model import TouchAnything
 from touchanything.inference.model.vit import DinoVisionTransformer, interpolate_pos_embed

@@ -15,7 +15,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from touchanything.devices.snapshot import Snapshot
+from touchanything.core.snapshot import Snapshot
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 

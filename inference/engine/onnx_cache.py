@@ -22,7 +22,7 @@ from pathlib import Path
 import torch
 from tqdm import tqdm
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.inference.engine.onnx_export import export_onnx
 from touchanything.inference.model.model_config import config_from_dict, config_to_dict
 from touchanything.inference.model.models import TactileModel, create_model

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import torch
 
-from touchanything.devices.hand_pose import JOINTS_PER_HAND
-from touchanything.devices.output_safety import replacing
+from touchanything.core.hand_pose import JOINTS_PER_HAND
+from touchanything.core.output_safety import replacing
 from touchanything.inference.engine.frame_encoder import bake_position_embedding
 from touchanything.inference.engine.model_halves import model_halves
 from touchanything.inference.engine.onnx_export_folder import check_export_folder, export_files, export_names, remove_stale

@@ -14,9 +14,9 @@ import sys
 from collections.abc import Iterable
 from pathlib import Path
 
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import check_output
-from touchanything.devices.temporary_files import written_here
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import check_output
+from touchanything.core.temporary_files import written_here
 from touchanything.inference.engine.onnx_manifest import MANIFEST, read_manifest
 
 PARTS = ("encoder", "head")

@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 
 MANIFEST = "engine.json"
 WEIGHTS_KEY = "weights_sha256"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.onnx_cache import export_aside, onnx_cache_dir
 from touchanything.inference.engine.onnx_export import weights_sha256

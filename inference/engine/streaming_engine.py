@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.hand_pose import JOINTS_PER_HAND
-from touchanything.devices.snapshot import HANDS, VIEW_NAMES, Snapshot
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.hand_pose import JOINTS_PER_HAND
+from touchanything.core.snapshot import HANDS, VIEW_NAMES, Snapshot
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.inference.engine.engine_runtime import Runtime, make_runtime
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.frame_ring import CachedFrame, FrameRing, Window

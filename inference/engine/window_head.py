@@ -12,7 +12,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from touchanything.devices.hand_pose import JOINTS_PER_HAND
+from touchanything.core.hand_pose import JOINTS_PER_HAND
 from touchanything.inference.model.tactile_decoder import MlpTactileDecoder
 from touchanything.inference.model.temporal import DividedSpaceTimeLayer
 from touchanything.inference.model.touch_model import TouchAnything

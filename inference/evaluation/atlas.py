@@ -25,8 +25,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from touchanything.devices.errors import UserError, require_finite_positive
-from touchanything.devices.snapshot import Snapshot
+from touchanything.core.errors import UserError, require_finite_positive
+from touchanything.core.snapshot import Snapshot
 from touchanything.inference.engine.engine_setting import EngineSetting, parse_setting
 from touchanything.inference.evaluation.bootstrap import Resampler
 

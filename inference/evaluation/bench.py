@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.devices.view_sets import view_set_name
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.view_sets import view_set_name
 from touchanything.inference.engine.engine_runtime import Runtime
 from touchanything.inference.engine.engine_setting import EngineSetting, compute_threads
 from touchanything.inference.engine.ensemble_engine import engine_for

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.tactile_layout import TactileLayout
+from touchanything.core.tactile_layout import TactileLayout
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.ensemble_engine import engine_for
 from touchanything.inference.engine.streaming_engine import StreamingEngine

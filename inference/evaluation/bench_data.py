@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.errors import UserError, failure_line
+from touchanything.core.snapshot import Snapshot
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, SPLIT_KEYS, read_split
 from touchanything.devices.episodes.episode_loader import (
     episode_exists,
@@ -18,9 +20,7 @@ from touchanything.devices.episodes.episode_loader import (
     is_hdf5_path,
     open_episode,
 )
-from touchanything.devices.errors import UserError, failure_line
 from touchanything.devices.rig.replay import ReplayConfig, ReplaySource
-from touchanything.devices.snapshot import Snapshot
 from touchanything.inference.evaluation.metrics import ground_truth_for_metrics
 from touchanything.inference.model.preprocess import resize_frame
 

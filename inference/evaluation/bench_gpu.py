@@ -12,7 +12,7 @@ from collections import deque
 import numpy as np
 import torch
 
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench import interleaved_latency, latency_row

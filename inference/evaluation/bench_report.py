@@ -7,7 +7,7 @@ import math
 import re
 from pathlib import Path
 
-from touchanything.devices.output_safety import replacing, write_text
+from touchanything.core.output_safety import replacing, write_text
 from touchanything.inference.evaluation.bench_plot import pareto_plot
 from touchanything.inference.evaluation.bootstrap import thin_strata
 

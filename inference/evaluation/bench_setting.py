@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from touchanything.devices.view_sets import VIEW_SETS
+from touchanything.core.view_sets import VIEW_SETS
 from touchanything.inference.engine.engine_setting import OUTPUTS, EngineSetting
 
 PARTIAL_VIEWS = (VIEW_SETS["ego"], VIEW_SETS["ego+left"], VIEW_SETS["ego+right"])

@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import torch.distributed as dist
 
+from touchanything.core.errors import UserError, failure_line
+from touchanything.core.tactile_layout import TactileLayout
+from touchanything.core.view_sets import VIEW_SETS
 from touchanything.devices.episodes.episode import Episode
 from touchanything.devices.episodes.episode_loader import open_episode
-from touchanything.devices.errors import UserError, failure_line
-from touchanything.devices.tactile_layout import TactileLayout
-from touchanything.devices.view_sets import VIEW_SETS
 from touchanything.inference.evaluation.metrics import MetricAccumulator, aggregate, ground_truth_for_metrics
 from touchanything.inference.evaluation.trajectory_prediction import TrajectoryPrediction, predict_trajectory
 from touchanything.inference.evaluation.vision_share import vision_shares

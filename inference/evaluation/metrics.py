@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from touchanything.devices.snapshot import HANDS
+from touchanything.core.snapshot import HANDS
 
 CONTACT_THRESHOLD = 0.1
 MIN_CONTACT_RATIO = 0.05

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from touchanything.core.errors import UserError
 from touchanything.devices.episodes.episode import Episode
-from touchanything.devices.errors import UserError
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN, TACTILE_SIZE
 from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.pose_encoder import prepare_poses

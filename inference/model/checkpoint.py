@@ -8,8 +8,8 @@ from pathlib import Path
 import torch
 import yaml
 
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import replacing, write_text
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import replacing, write_text
 from touchanything.inference.model.config_files import read_config_file
 from touchanything.inference.model.model_config import ModelConfig, config_from_dict, write_config
 from touchanything.inference.model.models import TactileModel, create_model

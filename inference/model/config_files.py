@@ -14,7 +14,7 @@ from pathlib import Path
 
 import yaml
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 
 BASE_KEY = "_base_"
 

@@ -19,7 +19,7 @@ import typing
 from dataclasses import fields, is_dataclass
 from typing import Any
 
-from touchanything.devices.errors import UserError, describe
+from touchanything.core.errors import UserError, describe
 
 
 def limits(low: float | None = None, high: float | None = None, high_open: bool = False) -> dict:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 from touchanything.inference.model.checkpoint import find_config
 from touchanything.inference.model.config_files import read_config_file
 from touchanything.inference.model.model_config import ModelConfig, config_from_dict

@@ -12,7 +12,7 @@ import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from touchanything.devices.output_safety import write_text
+from touchanything.core.output_safety import write_text
 
 CARD_FILE = "model_card.json"
 SPLIT_NAMES = {"test_seen": "seen", "test_unseen": "unseen"}

@@ -16,8 +16,8 @@ from typing import ClassVar
 
 import yaml
 
-from touchanything.devices.errors import UserError, describe
-from touchanything.devices.output_safety import write_text
+from touchanything.core.errors import UserError, describe
+from touchanything.core.output_safety import write_text
 from touchanything.inference.model.config_sections import SectionReader, check_section, limits, section_to_dict
 from touchanything.inference.model.conv_backbone import CONV_BACKBONES
 from touchanything.inference.model.vit import BACKBONES, PATCH

@@ -4,7 +4,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.inference.model.vision_encoder import VisionEncoder
 
 

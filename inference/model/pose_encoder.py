@@ -5,7 +5,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from touchanything.devices.hand_pose import JOINTS_PER_HAND
+from touchanything.core.hand_pose import JOINTS_PER_HAND
 from touchanything.inference.model.multi_view import encoder_layers
 
 INVALID_JOINT = -10.0

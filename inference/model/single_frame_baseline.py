@@ -15,8 +15,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from touchanything.devices.hand_pose import JOINTS_PER_HAND
-from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.core.hand_pose import JOINTS_PER_HAND
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.inference.model.model_config import TACTILE_SIZE, ModelConfig
 from touchanything.inference.model.multi_view import view_slots
 from touchanything.inference.model.pose_encoder import set_hand_statistics, standardised_hand_features

@@ -10,7 +10,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 
 if TYPE_CHECKING:
     import torch

@@ -14,7 +14,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from touchanything.devices.errors import UserError
+from touchanything.core.errors import UserError
 
 PATCH = 14
 PRETRAIN_SIZE = 518

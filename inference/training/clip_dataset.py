@@ -19,9 +19,9 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset, DistributedSampler, get_worker_info
 
+from touchanything.core.errors import UserError
 from touchanything.devices.episodes.episode_loader import is_hdf5_path, open_episode
 from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
-from touchanything.devices.errors import UserError
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from touchanything.inference.model.pose_encoder import prepare_poses
 from touchanything.inference.model.preprocess import blank_frames, resize_frame, to_model_input

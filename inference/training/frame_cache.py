@@ -24,8 +24,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from touchanything.core.errors import UserError
 from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
-from touchanything.devices.errors import UserError
 from touchanything.inference.model.preprocess import resize_frame
 
 CACHE_DIR = ".frame_cache"

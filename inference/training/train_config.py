@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import ClassVar
 
-from touchanything.devices.errors import UserError, describe
+from touchanything.core.errors import UserError, describe
 from touchanything.inference.model.config_files import read_config_file
 from touchanything.inference.model.config_sections import SectionReader, check_section, limits, section_to_dict
 from touchanything.inference.model.model_config import (

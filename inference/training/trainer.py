@@ -21,9 +21,9 @@ from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
+from touchanything.core.errors import UserError
+from touchanything.core.view_sets import view_set_name
 from touchanything.devices.episodes.dataset_split import SPLIT_FILE, read_split
-from touchanything.devices.errors import UserError
-from touchanything.devices.view_sets import view_set_name
 from touchanything.inference.model.checkpoint import build_model, load_state, model_state, read_checkpoint, save_checkpoint
 from touchanything.inference.model.model_config import SPAN
 from touchanything.inference.model.torch_device import join_process_group, resolve_device

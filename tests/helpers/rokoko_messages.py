@@ -7,11 +7,11 @@ import json
 import lz4.frame
 import numpy as np
 
+from touchanything.core.snapshot import HANDS
 from touchanything.devices.hardware.rokoko_protocol import HAND_JOINT_NAMES
 from touchanything.devices.sim.hand_model import hand_state
 from touchanything.devices.sim.script_base import PALM_DOWN, REST_FLEX
 from touchanything.devices.sim.shapes import pose_at
-from touchanything.devices.snapshot import HANDS
 
 BODY_JOINTS = (
     "hip", "spine", "chest", "neck", "head",

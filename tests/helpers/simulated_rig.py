@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.snapshot import HANDS, Snapshot
 from touchanything.devices.episodes.video_io import VideoWriter
 from touchanything.devices.hardware.jq_glove import JQGlove, JQGloveConfig
 from touchanything.devices.hardware.opencv_camera import OpenCVCamera, OpenCVCameraConfig
@@ -20,7 +21,6 @@ from touchanything.devices.hardware.threaded_source import now_us
 from touchanything.devices.rig.rig_inputs import RigInput, camera_fill, glove_fill, mocap_fill, trackers_fill
 from touchanything.devices.sim.glove_serial import SimulatedGloveSerial
 from touchanything.devices.sim.rokoko_sender import RokokoSenderConfig, SimulatedRokokoSender
-from touchanything.devices.snapshot import HANDS, Snapshot
 
 CAMERA_SIZE = (160, 120)
 CHEST_POSE = np.array([0.1, 1.2, 0.3, 1.0, 0.0, 0.0, 0.0], np.float32)

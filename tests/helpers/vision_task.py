@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.devices.episodes.dataset_conversion import convert_dataset
 from touchanything.devices.episodes.episode_writer import EpisodeFrame, RawEpisodeWriter
-from touchanything.devices.snapshot import VIEW_NAMES
 
 BRIGHT, DARK = 220, 25
 

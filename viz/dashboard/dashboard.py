@@ -26,10 +26,10 @@ import dearpygui.dearpygui as dpg
 import matplotlib
 import numpy as np
 
-from touchanything.devices.errors import UserError
-from touchanything.devices.output_safety import replacing
+from touchanything.core.errors import UserError
+from touchanything.core.output_safety import replacing
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.devices.rate_meter import RateMeter
-from touchanything.devices.snapshot import VIEW_NAMES
 from touchanything.viz.dashboard.atlas_panel import AtlasPanel
 from touchanything.viz.dashboard.dashboard_controls import Tables, build_controls, build_tables
 from touchanything.viz.dashboard.dashboard_drawn import ContactLamps, HistoryPlots

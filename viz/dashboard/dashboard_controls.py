@@ -8,10 +8,10 @@ from typing import Protocol
 import dearpygui.dearpygui as dpg
 import numpy as np
 
+from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.view_sets import VIEW_LABELS
 from touchanything.devices.camera_pose.estimator import STAGE as POSE_STAGE
-from touchanything.devices.errors import UserError
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
-from touchanything.devices.view_sets import VIEW_LABELS
 from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState, SourceStatus
 from touchanything.viz.frame_facts import FrameFacts, metric_text
 from touchanything.viz.hand_projection import pose_label

@@ -7,7 +7,7 @@ from __future__ import annotations
 import dearpygui.dearpygui as dpg
 import numpy as np
 
-from touchanything.devices.snapshot import HANDS
+from touchanything.core.snapshot import HANDS
 from touchanything.viz.contact import UNKNOWN, lamp_colour, verdict
 from touchanything.viz.frame_facts import FrameFacts, Metrics
 from touchanything.viz.line_plot import LATENCY_PLOT_MS, PLOT_SAMPLES, SERIES_COLOURS

@@ -4,8 +4,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from touchanything.devices.snapshot import HANDS, Snapshot
-from touchanything.devices.view_sets import view_label
+from touchanything.core.snapshot import HANDS, Snapshot
+from touchanything.core.view_sets import view_label
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.viz.dashboard.dashboard_state import SessionState
 from touchanything.viz.frame_facts import FrameFacts

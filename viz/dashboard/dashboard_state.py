@@ -8,7 +8,7 @@ from typing import Protocol
 
 import numpy as np
 
-from touchanything.devices.snapshot import VIEW_NAMES, Snapshot
+from touchanything.core.snapshot import VIEW_NAMES, Snapshot
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.inference.evaluation.atlas import AtlasRow
 from touchanything.viz.frame_facts import FrameFacts, Metrics

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from touchanything.devices.snapshot import Snapshot
+from touchanything.core.snapshot import Snapshot
 from touchanything.inference.engine.prediction import Prediction
 from touchanything.viz.frame_facts import FrameFacts
 

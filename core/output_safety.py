@@ -28,9 +28,9 @@ import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-from touchanything.devices.errors import UserError
-from touchanything.devices.input_paths import collect_inputs
-from touchanything.devices.temporary_files import mark, marker_path, remove_left_behind, tag_written, temporary_path, unmark, written_here
+from touchanything.core.errors import UserError
+from touchanything.core.input_paths import collect_inputs
+from touchanything.core.temporary_files import mark, marker_path, remove_left_behind, tag_written, temporary_path, unmark, written_here
 
 
 def add_overwrite_argument(parser: argparse.ArgumentParser, what: str) -> None:

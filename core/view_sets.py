@@ -6,7 +6,7 @@ used"), and the official evaluation's four view configurations (`ego`, `ego+left
 episode's files keep the official names: chest.mp4, left.mp4, right.mp4 (`devices.episodes.raw_episode.VIDEO_FILES`)."""
 from __future__ import annotations
 
-from touchanything.devices.snapshot import VIEW_NAMES
+from touchanything.core.snapshot import VIEW_NAMES
 
 VIEW_IDS = {"ego": "ego", "wrist_left": "left", "wrist_right": "right"}
 """Official view name → its id in view-set ids (`ego+left`)."""

@@ -5,7 +5,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from touchanything.devices.errors import DataError
+from touchanything.core.errors import DataError
 
 
 def read_json_file(path: Path) -> Any:

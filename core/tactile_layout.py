@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from touchanything.devices.errors import DataError
-from touchanything.devices.json_files import read_json_file
-from touchanything.devices.snapshot import HANDS
+from touchanything.core.errors import DataError
+from touchanything.core.json_files import read_json_file
+from touchanything.core.snapshot import HANDS
 
 GRID_SIZE = 21
 RAW_SLOTS = 256
@@ -98,7 +98,7 @@ class TactileLayout:
     @classmethod
     def default(cls) -> TactileLayout:
         """The project's own layout (same geometry as the official one: 217 cells, 151 tactile + 66 bend)."""
-        folder = resources.files("touchanything.devices") / "layouts" / "default"
+        folder = resources.files("touchanything.core") / "layouts" / "default"
         with resources.as_file(folder) as path:
             return cls.from_dir(path)
 

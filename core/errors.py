@@ -15,13 +15,17 @@ def describe(path: str | Path, field: str | None, problem: str) -> str:
 
 
 class DataError(UserError):
-    """A file that is missing, unreadable, or holds a field of the wrong shape, dtype or value."""
+    """A file that is missing, unreadable, or holds a field of the wrong shape, dtype or value. Pickles (a worker
+    process of a batch raises it to the parent)."""
 
     def __init__(self, path: str | Path, field: str | None, problem: str) -> None:
         super().__init__(describe(path, field, problem))
         self.path = Path(path)
         self.field = field
         self.problem = problem
+
+    def __reduce__(self):
+        return DataError, (self.path, self.field, self.problem)
 
 
 def failure_line(source: str | Path, exc: BaseException) -> str:
