@@ -65,9 +65,16 @@ def hand_map(grid: np.ndarray, cell: int, error: bool = False, high: float = 1.0
 
 def _hatch(image: np.ndarray, cells: np.ndarray, cell: int) -> None:
     """Draw HATCH diagonals over `cells` (21, 21) bool of an upscaled (21·cell)² hand map, in place."""
-    rows, columns = np.indices(image.shape[:2])
+    image[_hatch_pattern(image.shape[0]) & np.repeat(np.repeat(cells, cell, axis=0), cell, axis=1)] = HATCH
+
+
+@functools.lru_cache(maxsize=8)
+def _hatch_pattern(size: int) -> np.ndarray:
+    """(size, size) bool: the diagonals, one pixel in HATCH_PERIOD (cached: read-only)."""
+    rows, columns = np.indices((size, size))
     pattern = (rows + columns) % HATCH_PERIOD == 0
-    image[pattern & np.repeat(np.repeat(cells, cell, axis=0), cell, axis=1)] = HATCH
+    pattern.flags.writeable = False
+    return pattern
 
 
 def draw_contact_outline(image: np.ndarray, grid: np.ndarray, cell: int, threshold: float,

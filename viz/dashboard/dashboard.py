@@ -35,6 +35,7 @@ from touchanything.viz.dashboard.dashboard_controls import Tables, build_control
 from touchanything.viz.dashboard.dashboard_drawn import ContactLamps, HistoryPlots
 from touchanything.viz.dashboard.dashboard_panels import blank, camera_panel, pressure_views
 from touchanything.viz.dashboard.dashboard_state import DashboardSession, SessionState
+from touchanything.viz.dashboard.render_priority import lower_rasterizer_threads
 from touchanything.viz.dashboard.shown_frame import ShownFrame
 from touchanything.viz.display import display_problem
 from touchanything.viz.pressure_panel import HAND_LABELS, MAP_GAP, MAP_TITLES, maps_width, unposed_as_nan
@@ -247,6 +248,7 @@ class Dashboard:
             dpg.render_dearpygui_frame()
             if not self.panel_rects:
                 self._find_panels()
+                lower_rasterizer_threads()  # created by the first frame
             self.stats.frames += 1
             self.stats.rate.tick()
             self.stats.seconds = time.perf_counter() - start
