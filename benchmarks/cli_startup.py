@@ -1,4 +1,4 @@
-"""How fast the command line answers (issue 34): `touchanything --help`, `touchanything COMMAND --help` for every
+"""How fast the command line answers: `touchanything --help`, `touchanything COMMAND --help` for every
 command, and `info` of one raw episode of the bundled sample, each run RUNS times in a fresh process.
 
     python benchmarks/cli_startup.py [--runs 5] [--out docs/bench/cli_startup]

@@ -229,8 +229,8 @@ def markdown(rows: list[dict], before: list[dict]) -> str:
              "replay paused after its first prediction. Playing: from frame 0. Beside a CPU-bound process: a second "
              "process spinning in pure Python for the whole run. The process's CPU is split by thread: the engine, the "
              "player with its video decoders, the display's main thread (building the panels, dearpygui), and "
-             "software OpenGL (Mesa's llvmpipe rasterizer threads, which the dashboard runs at nice 10 so that the "
-             "engine comes first: viz/dashboard/render_priority.py). The load average is the machine's.", "",
+             "software OpenGL (Mesa's llvmpipe rasterizer threads, which the dashboard runs at nice 12, below the "
+             "engine's 8: viz/dashboard/render_priority.py). The load average is the machine's.", "",
              *cpu_table(cpu_rows, [r for r in before if r["setting"] in CPU_SETTINGS]), "",
              "## Frame rate", "",
              "The bundled sample replayed at 30 fps through the engine into the dashboard (1280×720, everything "

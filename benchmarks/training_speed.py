@@ -1,4 +1,5 @@
-"""Where a training step's time goes on this machine, and training clips/s before and after issue 23.
+"""Where a training step's time goes on this machine, and training clips/s of the ViT nano decoding its frames
+per clip against the conv nano reading the frame cache.
 
     python benchmarks/training_speed.py --data HDF5_ROOT [--split-file F] [--trajectories 12] [--steps 30]
                                         [--rounds 2] [--out docs/bench]
@@ -6,10 +7,10 @@
 Settings, interleaved round by round (this machine's speed drifts), each a fresh model trained for `--steps`
 steps after 3 warm-up steps on the first `--trajectories` training trajectories of the split, batch 8,
 loading in the main process (the bundled configs' `num_workers: 0`):
-- `nano_vit, decoded per clip` — the nano of before issue 23 (configs/nano_vit.yaml: the official
+- `nano_vit, decoded per clip` — the ViT nano (configs/nano_vit.yaml: the official
   architecture at nano size, ViT at 112 px) with frames decoded from the HDF5 file and resized every clip;
 - `nano_vit, frame cache` — the same model with frames from the frame cache;
-- `nano, frame cache` — the nano of issue 23 (configs/nano.yaml: conv backbone at 96 px, hand pose input);
+- `nano, frame cache` — the bundled nano's recipe (configs/nano.yaml: conv backbone at 96 px, hand pose input);
 - `nano, decoded per clip` — the same without the cache.
 Each step is timed in four parts: loading the batch, the forward pass, loss and backward, the optimiser
 step (with gradient clipping). Writes `training_speed.md` and `.json` into `--out`.
@@ -103,8 +104,9 @@ def markdown(result: dict) -> str:
     lines = [f"# Training speed ({result['cores']} CPU cores, torch {result['torch']}, {result['threads']} threads)", "",
              f"`python benchmarks/training_speed.py`: {result['trajectories']} training trajectories, batch 8, "
              f"{result['steps']} timed steps per setting after 3 warm-up steps, settings interleaved round by round.", "",
-             f"**nano clips/s: {before:.1f} before issue 23 (nano_vit, frames decoded per clip) → {after:.1f} after "
-             f"(nano, frame cache): {after / before:.1f}×** (medians over rounds).", "",
+             f"**clips/s: {before:.1f} for the ViT nano decoding its frames per clip (nano_vit, decoded per clip), "
+             f"{after:.1f} for the conv nano reading the frame cache (nano, frame cache): {after / before:.1f}×** "
+             "(medians over rounds).", "",
              "| round | model | frames | clips/s | load ms/clip | forward ms/clip | backward ms/clip | optimiser ms/clip | load avg |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:

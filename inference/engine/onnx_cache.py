@@ -4,7 +4,7 @@ filled on first use by an export in a child process at low priority (`export_asi
 Why a child process: an export is seconds of Python (the torch exporter, then the int8 quantiser). Run on the
 thread that loads a model while an engine runs (the dashboard's tier switch), it held the interpreter lock
 and the cores at normal priority while the engine thread runs niced (`live_engine.ENGINE_NICENESS`): the
-first switch to an ONNX tier not yet exported dropped 128 frames and reached 638 ms latency (issue 37). The
+first switch to an ONNX tier not yet exported dropped 128 frames and reached 638 ms latency. The
 child has its own interpreter and runs below the engine (`EXPORT_NICENESS`); the loading thread only waits. A
 command that waits for the export on its main thread (a headless replay) has nothing to protect: its child
 runs at the command's priority (niced, a `pico` export on a busy machine took minutes), with the wait said.

@@ -40,7 +40,7 @@ def is_export(folder: Path) -> bool:
 
 def export_weights(folder: Path, manifest: dict) -> str:
     """The SHA-256 of the weights the export was made from; UserError for an export made before it was
-    recorded (issue 37): its weights cannot be checked, so it is refused rather than trusted."""
+    recorded: its weights cannot be checked, so it is refused rather than trusted."""
     digest = manifest.get(WEIGHTS_KEY)
     if not isinstance(digest, str) or not digest:
         raise UserError(f"{folder}: the ONNX export does not record the SHA-256 of its weights (made by an older "

@@ -1,16 +1,20 @@
 """The display yields the CPU to the model it shows. Without a GPU, OpenGL is drawn by Mesa's software
 rasterizer (llvmpipe: Xvfb, a remote X session, a machine without a GPU driver), in threads of this process that
-take about a third of a core at 30 frames/s; at the same priority as the engine they take its time on a busy
-machine. Lowered, the engine and the player run first under load and the display drops frames instead of the
-engine dropping predictions. With a GPU driver there are no such threads and nothing changes."""
+take about a third of a core at 30 frames/s; at normal priority they take the engine's time on a busy machine
+(the engine's thread runs at nice ENGINE_NICENESS, below capture and the rig clock). Lowered below the engine,
+the engine and the player run first under load and the display drops frames instead of the engine dropping
+predictions. With a GPU driver there are no such threads and nothing changes."""
 from __future__ import annotations
 
 import os
 
+from touchanything.inference.engine.live_engine import ENGINE_NICENESS
+
 RASTERIZER_THREADS = ("llvmpipe",)
 """Name prefixes of the software rasterizer's threads (Linux thread names, /proc/self/task/*/comm)."""
-RASTERIZER_NICE = 10
-"""The rasterizer threads' nice value: CFS gives a nice-0 thread about 9× the share of a nice-10 one."""
+RASTERIZER_NICE = ENGINE_NICENESS + 4
+"""The rasterizer threads' nice value, below the engine's (CFS gives a thread 4 nice steps higher in priority
+about 2.4× the share)."""
 
 
 def lower_rasterizer_threads(nice: int = RASTERIZER_NICE) -> int:
