@@ -65,16 +65,18 @@ def hand_map(grid: np.ndarray, cell: int, error: bool = False, high: float = 1.0
 
 def _hatch(image: np.ndarray, cells: np.ndarray, cell: int) -> None:
     """Draw HATCH diagonals over `cells` (21, 21) bool of an upscaled (21·cell)² hand map, in place."""
-    image[_hatch_pattern(image.shape[0]) & np.repeat(np.repeat(cells, cell, axis=0), cell, axis=1)] = HATCH
+    image[_hatch_mask(np.ascontiguousarray(cells, bool).tobytes(), cell)] = HATCH
 
 
-@functools.lru_cache(maxsize=8)
-def _hatch_pattern(size: int) -> np.ndarray:
-    """(size, size) bool: the diagonals, one pixel in HATCH_PERIOD (cached: read-only)."""
-    rows, columns = np.indices((size, size))
-    pattern = (rows + columns) % HATCH_PERIOD == 0
-    pattern.flags.writeable = False
-    return pattern
+@functools.lru_cache(maxsize=16)
+def _hatch_mask(cells: bytes, cell: int) -> np.ndarray:
+    """(21·cell, 21·cell) bool: the HATCH diagonals (one pixel in HATCH_PERIOD) over the cells of a (21, 21) bool
+    mask given as bytes (cached: a map's bend cells are the same frame after frame; read-only)."""
+    grid = np.frombuffer(cells, bool).reshape(21, 21)
+    rows, columns = np.indices((21 * cell, 21 * cell))
+    mask = ((rows + columns) % HATCH_PERIOD == 0) & np.repeat(np.repeat(grid, cell, axis=0), cell, axis=1)
+    mask.flags.writeable = False
+    return mask
 
 
 def draw_contact_outline(image: np.ndarray, grid: np.ndarray, cell: int, threshold: float,
