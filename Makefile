@@ -16,7 +16,8 @@ demo: $(BASE_STAMP) $(HAND_MODEL)
 	$(VENV)/bin/touchanything demo
 
 # The suite in two runs: everything that neither measures time nor holds a machine resource in $(TEST_WORKERS)
-# worker processes, then the `serial` tests (tests/conftest.py SERIAL_MODULES) one by one on an otherwise idle machine.
+# worker processes, then the `serial` tests (those under tests/timing/ and those that use the X display; marked in
+# tests/conftest.py) one by one on an otherwise idle machine.
 TEST_WORKERS ?= 2
 
 test: $(DEV_STAMP) $(HAND_MODEL) xvfb

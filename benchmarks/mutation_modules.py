@@ -14,31 +14,32 @@ class Module:
     """Only the mutants inside these functions / methods / classes (cosmic-ray's definition name); () all."""
 
 
-_LEROBOT_TESTS = ("tests/test_lerobot_format_edges.py", "tests/test_lerobot_writer_edges.py", "tests/test_lerobot_reader_edges.py",
-                  "tests/test_lerobot_features.py", "tests/test_lerobot.py")
+_LEROBOT_TESTS = ("tests/devices/test_lerobot_format.py", "tests/devices/test_lerobot_writer.py", "tests/devices/test_lerobot_reader.py",
+                  "tests/devices/test_lerobot_features.py", "tests/devices/test_lerobot.py")
 _LEROBOT_K = ("-k", "not bundled_sample and not eval_and_replay")
 """The LeRobot writer (with its format) and reader: the export and read-back tests, without the two that export the
 whole bundled sample and run eval and replay on it (25 s; they add the commands end to end)."""
 
 MODULES = {
-    "metrics": Module("inference/evaluation/metrics.py", ("tests/test_metrics.py", "tests/test_metric_edges.py"),
+    "metrics": Module("inference/evaluation/metrics.py", ("tests/inference/test_metrics.py",),
                       ("-k", "not million")),  # the million-frame float64 test takes 10 s and sees no operator mutant
-    "evaluation_summary": Module("inference/evaluation/evaluation.py", ("tests/test_evaluation_summary.py",),
+    "evaluation_summary": Module("inference/evaluation/evaluation.py", ("tests/inference/test_evaluation_summary.py",),
                                  functions=("trajectory_metrics", "EvaluationResult", "label", "summary",
                                             "vision_share_summary")),  # not `evaluate`: it runs a model
-    "frame_facts": Module("viz/frame_facts.py", ("tests/test_frame_facts_edges.py", "tests/test_frame_facts.py"),
+    "frame_facts": Module("viz/frame_facts.py", ("tests/viz/test_frame_facts.py",),
                           ("-k", "not video")),  # the replay → video, summary, recording test: 5 s, integration only
-    "frame_ring": Module("inference/engine/frame_ring.py", ("tests/test_frame_ring.py", "tests/test_streaming.py"),
+    "frame_ring": Module("inference/engine/frame_ring.py", ("tests/inference/test_frame_ring.py", "tests/inference/test_streaming.py"),
                          ("-k", "not official_offline")),  # 14 s: the stitched output against the offline protocol
-    "streaming_engine": Module("inference/engine/streaming_engine.py", ("tests/test_streaming_edges.py", "tests/test_streaming.py"),
+    "streaming_engine": Module("inference/engine/streaming_engine.py", ("tests/inference/test_streaming.py",),
                                ("-k", "not official_offline")),
-    "tactile_layout": Module("core/tactile_layout.py", ("tests/test_tactile_layout_edges.py", "tests/test_tactile_layout.py")),
-    "output_safety": Module("core/output_safety.py", ("tests/test_output_safety_edges.py", "tests/test_output_safety.py"),
-                            ("-k", "edges or replacing or check_output_cases")),  # not the commands run end to end
+    "tactile_layout": Module("core/tactile_layout.py", ("tests/core/test_tactile_layout.py",)),
+    "output_safety": Module("core/output_safety.py", ("tests/core/test_output_safety_helpers.py", "tests/timing/test_output_safety.py"),
+                            ("-k", "output_safety_helpers or replacing or check_output_cases")),  # not the commands run end to end
     **{name: Module(f"devices/episodes/{name}.py", _LEROBOT_TESTS, _LEROBOT_K)
        for name in ("lerobot_writer", "lerobot_episode", "lerobot_format")},
-    "lerobot_stats": Module("devices/episodes/lerobot_stats.py", ("tests/test_lerobot_stats_edges.py", "tests/test_lerobot_features.py"),
-                            ("-k", "stats_edges or quantiles or statistics")),  # hand-worked, and of an export
+    "lerobot_stats": Module("devices/episodes/lerobot_stats.py",
+                            ("tests/devices/test_lerobot_stats.py", "tests/devices/test_lerobot_features.py"),
+                            ("-k", "lerobot_stats or quantiles or statistics")),  # hand-worked, and of an export
 }
 """The modules under test, in priority order, each with the narrowest tests that cover it (each mutant runs them)."""
 

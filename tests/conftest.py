@@ -189,25 +189,21 @@ def dashboard_display(x_display, monkeypatch):
     return x_display
 
 
-SERIAL_MODULES = frozenset({
-    "test_cameras", "test_cli_startup", "test_dashboard", "test_dashboard_session", "test_data_safety_cases",
-    "test_device_contract", "test_devices_command", "test_display", "test_engine_runtimes", "test_gpu_path",
-    "test_hand_estimator", "test_interrupted_outputs", "test_jq_glove", "test_live_engine", "test_live_rig",
-    "test_onnx_export_folder", "test_output_safety", "test_reconnect", "test_recorder", "test_recorder_fsync",
-    "test_replay", "test_rerun", "test_rerun_served", "test_rerun_serving", "test_rig_clock", "test_rokoko_udp",
-    "test_soak", "test_trackers"})
-"""Modules whose tests measure time (rates, latencies, deadlines) or hold a machine resource one test at a time (the
-simulated rig's UDP ports and ptys, an X display), or export ONNX graphs in a low-priority child process (a busy
-worker beside it starves it): `make test` runs them one by one after the others, which run in parallel worker
-processes (pytest-xdist), so that no other test's load can slow them."""
+TIMING_DIR = Path(__file__).resolve().parent / "timing"
+"""The folder of the tests that measure time (rates, latencies, deadlines) or hold a machine resource one test at a
+time (the simulated rig's UDP ports and ptys, an X server of their own), or export ONNX graphs in a low-priority child
+process (a busy worker beside it starves it): `make test` runs them, and every test that uses the X display, one by
+one after the others, which run in parallel worker processes (pytest-xdist), so that no other test's load can slow
+them."""
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Tests that use the X display carry the `display` marker (deselect them with `-m 'not display'`); those and
-    the tests of `SERIAL_MODULES` carry the `serial` marker."""
+    every test under tests/timing/ carry the `serial` marker. The folder decides, not a list of modules: a module
+    that must run serially goes to tests/timing/."""
     for item in items:
         display = "x_display" in getattr(item, "fixturenames", ())
         if display:
             item.add_marker(pytest.mark.display)
-        if display or item.module.__name__.rsplit(".", 1)[-1] in SERIAL_MODULES:
+        if display or item.path.resolve().is_relative_to(TIMING_DIR):
             item.add_marker(pytest.mark.serial)

@@ -12,7 +12,7 @@ of the hand carries no cell.
 
 Joints: (21, 3) in any metric right-handed frame (WiLoR's head-camera frame: metres), official order. Sizes
 scale with the hand (finger radius 16 % of the knuckle width). Triangles wind counter-clockwise seen from
-outside for both hands (`tests/test_hand_surface.py` checks the signed volume).
+outside for both hands (`tests/viz/test_hand_surface.py` checks the signed volume).
 """
 from __future__ import annotations
 

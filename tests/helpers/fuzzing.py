@@ -1,9 +1,9 @@
-"""Shared by the fuzzed-reader properties (tests/test_fuzz_*.py): hypothesis settings, the guards that turn a
-hang or a traceback into a failure, and the corruptions — one edit of one file (truncation, byte flips, a
-deleted byte range, a JSON-lines line replaced by random JSON or a line break moved, an npz array or HDF5
-dataset of another shape or dtype, flipped bytes inside an HDF5 dataset's storage).
+"""Shared by the fuzzed-reader properties (tests/devices/test_fuzz_episodes.py, tests/inference/test_fuzz_files.py):
+hypothesis settings, the guards that turn a hang or a traceback into a failure, and the corruptions — one edit of
+one file (truncation, byte flips, a deleted byte range, a JSON-lines line replaced by random JSON or a line break
+moved, an npz array or HDF5 dataset of another shape or dtype, flipped bytes inside an HDF5 dataset's storage).
 
-`FUZZ_EXAMPLES=10 pytest tests/test_fuzz_*.py` multiplies the number of examples (a longer hunt).
+`FUZZ_EXAMPLES=10 pytest tests/*/test_fuzz_*.py` multiplies the number of examples (a longer hunt).
 """
 from __future__ import annotations
 
