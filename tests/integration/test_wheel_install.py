@@ -42,7 +42,7 @@ def test_the_wheel_holds_the_namespace_and_what_ships_with_it(wheel):
     names = zipfile.ZipFile(wheel).namelist()
     assert {name.split("/")[0] for name in names} == {"touchanything", "touchanything-0.1.0.dist-info"}
     layout = {name.rpartition("/")[2] for name in names if name.startswith("touchanything/core/layouts/default/")}
-    assert layout == {p.name for p in (ROOT / "devices" / "layouts" / "default").glob("*.json")}
+    assert layout == {p.name for p in (ROOT / "core" / "layouts" / "default").glob("*.json")}
     assert "touchanything/app/cli.py" in names and "touchanything/inference/engine/streaming_engine.py" in names
     for model in (p.parent.name for p in (ROOT / "models").glob("*/best_model.pth")):
         assert {f"touchanything/models/{model}/{f}" for f in ("best_model.pth", "config.yaml", "model_card.json")} <= set(names)
