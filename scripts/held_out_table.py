@@ -2,10 +2,11 @@
 and contact IoU (all views, causal, the official per-trajectory mean) per split and over both, each with its 95 %
 bootstrap interval, and each model's paired difference against a reference model on the same trajectories.
 
-    .venv/bin/python scripts/held_out_table.py data/runs bundled_nano pico pico_more --against bundled_nano
+    .venv/bin/python scripts/held_out_table.py data/runs bundled_nano pico pico_more --against bundled_nano [--set fresh]
 
-reads RUNS/<model>/heldout_<split>/results.json (`touchanything eval --data data/heldout --split SPLIT --views all`,
-as scripts/train_bundled_models.sh writes them) for the splits test_seen and test_unseen and prints Markdown. The
+reads RUNS/<model>/<set>_<split>/results.json (`touchanything eval --data data/<set> --split SPLIT --views all`,
+as scripts/train_bundled_models.sh and scripts/train_frontier.sh write them; set `heldout`, the default, or `fresh`,
+the second fresh seed) for the splits test_seen and test_unseen and prints Markdown. The
 intervals are those of `touchanything bench` (`inference/evaluation/bootstrap.py`: trajectories drawn within their
 split, 2000 draws).
 """
@@ -22,11 +23,11 @@ SPLITS = ("test_seen", "test_unseen")
 METRICS = (("volumetric_iou", "V-IoU"), ("contact_iou", "C-IoU"))
 
 
-def per_trajectory(runs: Path, model: str) -> dict[str, dict[str, float]]:
-    """{trajectory path: {metric: causal value}} over both splits, with the split under "split"."""
+def per_trajectory(runs: Path, model: str, held_out: str) -> dict[str, dict[str, float]]:
+    """{trajectory path: {metric: causal value}} over both splits of the `held_out` set, with the split under "split"."""
     out = {}
     for split in SPLITS:
-        results = json.loads((runs / model / f"heldout_{split}" / "results.json").read_text())["results"]
+        results = json.loads((runs / model / f"{held_out}_{split}" / "results.json").read_text())["results"]
         rows = next(r for r in results if r["views"] == "all" and not r.get("pose_only") and not r.get("baseline"))
         for row in rows["trajectories"]:
             out[row["path"]] = {**{m: float(row["causal"][m]) for m, _ in METRICS}, "split": split}
@@ -41,8 +42,8 @@ def interval(value: tuple[float, float, float], signed: bool = False) -> str:
     return f"{mean:{form}} [{low:{form}}, {high:{form}}]"
 
 
-def table(runs: Path, models: list[str], against: str | None) -> list[str]:
-    data = {m: per_trajectory(runs, m) for m in models + ([against] if against and against not in models else [])}
+def table(runs: Path, models: list[str], against: str | None, held_out: str = "heldout") -> list[str]:
+    data = {m: per_trajectory(runs, m, held_out) for m in models + ([against] if against and against not in models else [])}
     paths = sorted(data[models[0]])
     splits = [data[models[0]][p]["split"] for p in paths]
     groups = {split: [i for i, s in enumerate(splits) if s == split] for split in SPLITS}
@@ -77,8 +78,9 @@ def main() -> None:
     parser.add_argument("runs", type=Path)
     parser.add_argument("models", nargs="+")
     parser.add_argument("--against", help="the reference model of the paired differences")
+    parser.add_argument("--set", default="heldout", choices=("heldout", "fresh"), help="the held-out set (default heldout)")
     args = parser.parse_args()
-    print("\n".join(table(args.runs, args.models, args.against)))
+    print("\n".join(table(args.runs, args.models, args.against, args.set)))
 
 
 if __name__ == "__main__":

@@ -8,17 +8,20 @@
 #               of a 4-member ensemble, all of one recipe and data
 # Resumable: a stopped run (a session that ends kills it) continues from its last.pth when this script is run
 # again; a finished run (data/runs/RUN/.done) and an evaluation whose results.json exists are skipped. Two
-# trainings run side by side, one torch thread each. Run from the repository root after scripts/make_datasets.sh.
+# trainings run side by side, one torch thread each. Run from the repository root after scripts/make_datasets.sh
+# has made the held-out set and the ~400 training trajectories: a run whose data is not made yet (twice the data:
+# split_train_2x.json) waits, said in one line, and so does the evaluation on the fresh seed; run this script
+# again once scripts/make_datasets.sh has made them. The tables cover the runs trained so far.
 set -euo pipefail
 TA=.venv/bin/touchanything
-for needed in data/split_train.json data/split_train_more.json data/split_train_2x.json data/heldout/split.json \
-    data/fresh/split.json; do
+for needed in data/split_train.json data/split_train_more.json data/heldout/split.json; do
   [ -f "$needed" ] || { echo "$needed is missing: run scripts/make_datasets.sh first" >&2; exit 2; }
 done
 mkdir -p data/runs
 train() {  # train CONFIG RUN SPLIT_FILE: configs/CONFIG.yaml into data/runs/RUN, continued from its last.pth
   local out=data/runs/$2 resume=()
   [ -f "$out/.done" ] && return 0
+  [ -f "$3" ] || { echo "$2 waits for $3 (scripts/make_datasets.sh)"; return 0; }
   [ -f "$out/last.pth" ] && resume=(--resume "$out/last.pth")
   OMP_NUM_THREADS=1 $TA train --config "configs/$1.yaml" --data data/sim240_h5 --split-file "$3" --out "$out" \
     "${resume[@]}" >> "data/runs/$2.train.log" 2>&1
@@ -26,6 +29,7 @@ train() {  # train CONFIG RUN SPLIT_FILE: configs/CONFIG.yaml into data/runs/RUN
 }
 evaluate() {  # evaluate RUN CHECKPOINT: all views, causal, both splits of the held-out set and of the fresh seed
   for root in heldout fresh; do
+    [ -f "data/$root/split.json" ] || { echo "$1 on data/$root waits for scripts/make_datasets.sh"; continue; }
     for split in test_seen test_unseen; do
       local out="data/runs/$1/${root}_$split"
       [ -f "$out/results.json" ] || $TA eval --checkpoint "$2" --data "data/$root" --split $split --ego-path views \
@@ -42,8 +46,14 @@ train nano nano_2x $TWICE
 mkdir -p data/runs/bundled_pico data/runs/bundled_nano
 evaluate bundled_pico models/pico/best_model.pth
 evaluate bundled_nano models/nano/best_model.pth
-for run in pico_seed1 pico_seed2 pico_seed3 pico_96 pico_128 pico_2x pico_162 nano_more nano_2x; do
+trained=()
+for run in pico_162 pico_2x nano_more nano_2x pico_96 pico_128 pico_seed1 pico_seed2 pico_seed3; do
+  [ -f "data/runs/$run/.done" ] || continue  # not trained yet: a half-trained best_model.pth is never evaluated
   evaluate "$run" "data/runs/$run/best_model.pth"
+  trained+=("$run")
 done
-.venv/bin/python scripts/held_out_table.py data/runs bundled_pico pico_162 pico_2x nano_more nano_2x pico_96 pico_128 \
-  pico_seed1 pico_seed2 pico_seed3 --against bundled_pico
+for set in heldout fresh; do
+  [ -f "data/$set/split.json" ] || continue
+  echo "## data/$set"
+  .venv/bin/python scripts/held_out_table.py data/runs bundled_pico "${trained[@]}" --against bundled_pico --set "$set"
+done

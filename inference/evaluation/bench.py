@@ -29,7 +29,13 @@ from touchanything.inference.engine.engine_setting import EngineSetting, compute
 from touchanything.inference.engine.ensemble_engine import engine_for
 from touchanything.inference.engine.onnx_export import export_onnx
 from touchanything.inference.engine.streaming_engine import StreamingEngine
-from touchanything.inference.evaluation.bench_accuracy import HeldOut, ModelAccuracy, SettingAccuracy, model_accuracy
+from touchanything.inference.evaluation.bench_accuracy import (
+    SPREAD_ERROR,
+    HeldOut,
+    ModelAccuracy,
+    SettingAccuracy,
+    model_accuracy,
+)
 from touchanything.inference.evaluation.bench_data import resident_mb
 from touchanything.inference.evaluation.bench_setting import settings_for
 from touchanything.inference.evaluation.metrics import aggregate
@@ -103,12 +109,14 @@ class BenchPlan:
 
 def accuracy_fields(result: SettingAccuracy) -> dict:
     """A row's accuracy: the official metrics (mean over trajectories), agreement with the reference outputs,
-    throughput, peak memory and the per-trajectory values of `PER_TRAJECTORY_METRICS`."""
+    throughput, peak memory and the per-trajectory values of `PER_TRAJECTORY_METRICS` (and, for an ensemble, of
+    `SPREAD_ERROR`)."""
     metrics = aggregate(result.per_trajectory)
+    kept = PER_TRAJECTORY_METRICS + ((SPREAD_ERROR,) if any(SPREAD_ERROR in t for t in result.per_trajectory) else ())
     return {"contact_iou": metrics["contact_iou"], "volumetric_iou": metrics["volumetric_iou"], "metrics": metrics,
             "agreement_viou": result.agreement_viou, "agreement_max_abs": result.worst, "peak_rss_mb": result.peak_mb,
             "throughput_fps": result.throughput_fps,
-            "per_trajectory": {m: [t[m] for t in result.per_trajectory] for m in PER_TRAJECTORY_METRICS}}
+            "per_trajectory": {m: [t.get(m, float("nan")) for t in result.per_trajectory] for m in kept}}
 
 
 def setting_row(setting: EngineSetting, runtime: Runtime, checkpoint_sha256: str | None = None) -> dict:

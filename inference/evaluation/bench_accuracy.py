@@ -1,6 +1,7 @@
 """The accuracy half of `touchanything bench`: every setting of one model replays the held-out trajectories
 frame by frame through the streaming engine (replay mode: every frame processed, deterministic), with the
-official metrics per trajectory, the agreement of its outputs with the model's reference setting (the first
+official metrics per trajectory (an ensemble's also the rank correlation of its members' spread with its error,
+`spread_error`), the agreement of its outputs with the model's reference setting (the first
 one), its throughput and peak memory.
 
 With `workers` > 1 the trajectories are dealt out to worker processes (worker w takes trajectories w, w + N,
@@ -27,8 +28,12 @@ from touchanything.inference.engine.ensemble_engine import engine_for
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_data import BenchEpisode, load_episodes, resident_mb
 from touchanything.inference.evaluation.evaluation import trajectory_metrics
+from touchanything.inference.evaluation.spread_error import trajectory_correlation
 from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.preprocess import blank_images
+
+SPREAD_ERROR = "spread_error_rho"
+"""An ensemble setting's per-trajectory rank correlation of its members' spread with its error (`spread_error`)."""
 
 
 @dataclass(frozen=True)
@@ -43,7 +48,8 @@ class HeldOut:
 
 @dataclass
 class SettingAccuracy:
-    """One setting's replay of some trajectories: official metrics per trajectory (in trajectory order); the
+    """One setting's replay of some trajectories: official metrics per trajectory (in trajectory order; an
+    ensemble's with its SPREAD_ERROR); the
     agreement sums with the reference outputs (Σ min, Σ max, max |difference| over the frames both predicted);
     frames replayed, seconds spent, peak resident MB."""
 
@@ -77,22 +83,43 @@ class ModelAccuracy:
     failures: list[str]
 
 
-def replay_outputs(engine: StreamingEngine, episode: BenchEpisode, peak: list[float], blank: bool = False) -> np.ndarray:
-    """Every frame through the engine (replay mode; `blank`: its images black) → (F, 2, 21, 21), NaN where
-    nothing was predicted."""
+@dataclass(frozen=True)
+class Replayed:
+    """One trajectory through an engine: pressure (F, 2, 21, 21), NaN where nothing was predicted; spread (F, 2, 21,
+    21), an ensemble's members' standard deviation per cell (NaN where none; None for a single model); hands (F, 2)
+    bool, the hands each frame's prediction covered."""
+
+    pressure: np.ndarray
+    spread: np.ndarray | None
+    hands: np.ndarray
+
+
+def replay_outputs(engine: StreamingEngine, episode: BenchEpisode, peak: list[float], blank: bool = False) -> Replayed:
+    """Every frame through the engine (replay mode; `blank`: its images black)."""
     engine.reset()
-    out = np.full((episode.num_frames, 2, 21, 21), np.nan, np.float32)
+    shape = (episode.num_frames, 2, 21, 21)
+    out, spread = np.full(shape, np.nan, np.float32), np.full(shape, np.nan, np.float32)
+    hands, ensemble = np.zeros((episode.num_frames, 2), bool), False
+
+    def keep(prediction) -> None:
+        nonlocal ensemble
+        if prediction.pressure is None:
+            return
+        out[prediction.frame_index] = prediction.pressure
+        hands[prediction.frame_index] = prediction.hands_predicted
+        if prediction.spread is not None:
+            spread[prediction.frame_index], ensemble = prediction.spread, True
+
     for i in range(episode.num_frames):
         snapshot = episode.snapshot(i, int(time.monotonic() * 1e6))
         if blank:
             snapshot = dataclasses.replace(snapshot, images=blank_images(snapshot.images))
         for prediction in engine.step(snapshot):
-            if prediction.pressure is not None:
-                out[prediction.frame_index] = prediction.pressure
+            keep(prediction)
         peak[0] = max(peak[0], resident_mb())
     for prediction in engine.drain():
-        out[prediction.frame_index] = prediction.pressure
-    return out
+        keep(prediction)
+    return Replayed(out, spread if ensemble else None, hands)
 
 
 def agreement_sums(out: np.ndarray, ref: np.ndarray) -> tuple[float, float, float]:
@@ -115,8 +142,12 @@ def settings_accuracy(settings: list[EngineSetting], engines: dict[EngineSetting
         engine = engines[dataclasses.replace(setting, blank=False)]
         result, outputs, peak, start = SettingAccuracy(), [], [resident_mb()], time.perf_counter()
         for index, episode in enumerate(episodes):
-            out = replay_outputs(engine, episode, peak, setting.blank)
+            replayed = replay_outputs(engine, episode, peak, setting.blank)
+            out = replayed.pressure
             result.per_trajectory.append(trajectory_metrics(out, episode.gt, bend))
+            if replayed.spread is not None:
+                result.per_trajectory[-1][SPREAD_ERROR] = trajectory_correlation(out, replayed.spread, episode.gt,
+                                                                                 replayed.hands)
             low, high, worst = agreement_sums(out, out if reference is None else reference[index])
             result.low, result.high, result.worst = result.low + low, result.high + high, max(result.worst, worst)
             result.frames += episode.num_frames

@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from touchanything.inference.engine.engine_setting import EngineSetting, parse_setting
+from touchanything.inference.evaluation.bench_accuracy import SPREAD_ERROR
 from touchanything.inference.evaluation.bench_setting import reference_of
 from touchanything.inference.evaluation.bootstrap import Resampler
 
@@ -34,7 +35,7 @@ def align_rows(rows: list[dict], own: list[dict], trajectories: list[dict]) -> N
 
 def _interval_fields(resampler: Resampler, values: dict[str, list[float]], keep: np.ndarray | None = None) -> dict:
     out = {}
-    for metric in INTERVAL_METRICS:
+    for metric in INTERVAL_METRICS + tuple(m for m in (SPREAD_ERROR,) if m in values):
         series = np.asarray(values[metric], np.float64)
         mean, low, high = resampler.interval(series if keep is None else series[keep])
         out[metric], out[f"{metric}_ci95"] = mean, [low, high]
@@ -43,7 +44,8 @@ def _interval_fields(resampler: Resampler, values: dict[str, list[float]], keep:
 
 def add_intervals(rows: list[dict], trajectories: list[dict]) -> None:
     """Set `<metric>_ci95` [low, high] on every row with per-trajectory values (its `<metric>` is the same official
-    mean), and `per_split` {split: {trajectories, <metric>, <metric>_ci95}}."""
+    mean), and `per_split` {split: {trajectories, <metric>, <metric>_ci95}}; an ensemble's row also gets its mean
+    spread–error rank correlation `spread_error_rho` (over the trajectories that have one) and its interval."""
     splits = [t["split"] for t in trajectories]
     resampler = Resampler(splits)
     per_split = {name: np.array([s == name for s in splits]) for name in dict.fromkeys(splits)}

@@ -162,6 +162,7 @@ def markdown(record: dict) -> str:
     for model, n in record["naive"].items():
         lines.append(f"| {model} | {_fmt(n['naive_p50_ms'], 1)} | {_fmt(n['streaming_p50_ms'], 1)} | {_fmt(n['ratio'], 1)}× |")
     lines += vision_share_lines(record["rows"])
+    lines += spread_error_lines(record["rows"])
     lines += ["", "## Targets", "", "| target | measured | limit | met |", "|---|---|---|---|"]
     for c in record["targets"]:
         met = {True: "yes", False: "**no**", None: "not measured"}[c["met"]]
@@ -181,6 +182,24 @@ def comparison_lines(comparisons: list[dict]) -> list[str]:
     for c in comparisons:
         lines.append(f"| {c['setting']} | {c['against']} | {_signed(c['delta_volumetric_iou'])} | "
                      f"{_signed(c['delta_contact_iou'])} |")
+    return lines
+
+
+def spread_error_lines(rows: list[dict]) -> list[str]:
+    """Whether each ensemble row's uncertainty map means something (none without ensembles): the mean over
+    trajectories of the per-frame rank correlation of the members' spread with the error (`spread_error`), its 95 %
+    interval and the trajectories that have one."""
+    ensembles = [r for r in rows if r.get("spread_error_rho_ci95") is not None]
+    if not ensembles:
+        return []
+    lines = ["", "## Does the ensemble's spread mean something?", "",
+             "Per frame, the rank correlation (Spearman) of the members' spread with the absolute error over the "
+             "predicted cells, averaged over each trajectory's frames, then over trajectories: > 0, the spread is "
+             "larger where the error is; an interval that holds 0, no measured relation.", "",
+             "| setting | spread–error ρ [95 % CI] | trajectories |", "|---|---|---|"]
+    for r in ensembles:
+        count = sum(1 for v in r["per_trajectory"]["spread_error_rho"] if v == v)  # not NaN
+        lines.append(f"| {r['setting']} | {_with_interval(r['spread_error_rho'], r['spread_error_rho_ci95'])} | {count} |")
     return lines
 
 

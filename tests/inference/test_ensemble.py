@@ -212,3 +212,37 @@ def test_bench_measures_an_ensemble_beside_its_single_member(tmp_path):
     by_name = {row["setting"]: row for row in rows}
     assert by_name["pico/torch-fp32/all/members2"]["volumetric_iou"] == by_name["pico/torch-fp32/all"]["volumetric_iou"]
     assert by_name["pico/torch-fp32/all/members2"]["p99_ms"] > 0
+
+
+def test_bench_measures_whether_an_ensembles_spread_ranks_its_error(tmp_path):
+    """An ensemble setting's replay carries, per trajectory, the spread–error rank correlation of the two members'
+    mean and half difference (worked out here from two single-model replays), its row the mean and interval, and
+    the report a line for it; a single model's row carries none."""
+    from touchanything.app.sessions.bundled import sample_episodes
+    from touchanything.inference.evaluation.bench import accuracy_fields
+    from touchanything.inference.evaluation.bench_accuracy import SPREAD_ERROR, replay_outputs, settings_accuracy
+    from touchanything.inference.evaluation.bench_data import load_episode
+    from touchanything.inference.evaluation.bench_intervals import add_intervals
+    from touchanything.inference.evaluation.bench_report import spread_error_lines
+
+    checkpoint = ensemble_folder(tmp_path, [perturbed_pico(tmp_path / "perturbed")])
+    single, pair = EngineSetting("pico"), EngineSetting("pico", members=2)
+    engines = {single: StreamingEngine(load_model(checkpoint), single), pair: load_ensemble(checkpoint, pair)}
+    episode = load_episode(sample_episodes()[2], 64, 60)  # the Workbench episode: both hands press
+    results = settings_accuracy([single, pair], engines, [episode], progress=lambda message: None)
+
+    other = StreamingEngine(load_model(checkpoint.parent / "members/2/best_model.pth"), single)
+    a, b = replay_outputs(engines[single], episode, [0.0]), replay_outputs(other, episode, [0.0])
+    expected = trajectory_correlation((a.pressure + b.pressure) / 2, np.abs(a.pressure - b.pressure) / 2, episode.gt,
+                                      a.hands)
+    assert np.isfinite(expected)
+    assert results[pair].per_trajectory[0][SPREAD_ERROR] == pytest.approx(expected, abs=1e-3)
+    assert SPREAD_ERROR not in results[single].per_trajectory[0]
+
+    rows = [{"setting": s.name(), **accuracy_fields(results[s])} for s in (single, pair)]
+    add_intervals(rows, [{"name": episode.name, "split": episode.split}])
+    assert "spread_error_rho" not in rows[0] and rows[1]["spread_error_rho"] == pytest.approx(expected, abs=1e-3)
+    assert rows[1]["spread_error_rho_ci95"] == pytest.approx([expected] * 2, abs=1e-3)  # one trajectory: no spread
+    assert spread_error_lines(rows)[-1].startswith("| pico/torch-fp32/all/members2 | ") and \
+        spread_error_lines(rows)[-1].endswith(" | 1 |")
+    assert spread_error_lines(rows[:1]) == []
