@@ -170,15 +170,20 @@ def markdown(record: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _section(title: str, text: str, columns: list[str]) -> list[str]:
+    """A report section's opening: its title, what it shows and its table's header."""
+    return ["", f"## {title}", "", text, "", "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+
+
 def comparison_lines(comparisons: list[dict]) -> list[str]:
     """The paired differences (`bench_intervals.paired_comparisons`) as a table (none without them)."""
     if not comparisons:
         return []
-    lines = ["", "## Paired differences on the same trajectories", "",
-             "Each setting against its model's reference (torch fp32, all views, newest frame), and each model's "
-             "reference against the base model's: the difference of the means and its 95 % paired bootstrap "
-             "interval. An interval that holds 0 is no measured difference.", "",
-             "| setting | against | Δ volumetric IoU [95 % CI] | Δ contact IoU [95 % CI] |", "|---|---|---|---|"]
+    lines = _section("Paired differences on the same trajectories",
+                     "Each setting against its model's reference (torch fp32, all views, newest frame), and each model's "
+                     "reference against the base model's: the difference of the means and its 95 % paired bootstrap "
+                     "interval. An interval that holds 0 is no measured difference.",
+                     ["setting", "against", "Δ volumetric IoU [95 % CI]", "Δ contact IoU [95 % CI]"])
     for c in comparisons:
         lines.append(f"| {c['setting']} | {c['against']} | {_signed(c['delta_volumetric_iou'])} | "
                      f"{_signed(c['delta_contact_iou'])} |")
@@ -192,11 +197,11 @@ def spread_error_lines(rows: list[dict]) -> list[str]:
     ensembles = [r for r in rows if r.get("spread_error_rho_ci95") is not None]
     if not ensembles:
         return []
-    lines = ["", "## Does the ensemble's spread mean something?", "",
-             "Per frame, the rank correlation (Spearman) of the members' spread with the absolute error over the "
-             "predicted cells, averaged over each trajectory's frames, then over trajectories: > 0, the spread is "
-             "larger where the error is; an interval that holds 0, no measured relation.", "",
-             "| setting | spread–error ρ [95 % CI] | trajectories |", "|---|---|---|"]
+    lines = _section("Does the ensemble's spread mean something?",
+                     "Per frame, the rank correlation (Spearman) of the members' spread with the absolute error over the "
+                     "predicted cells, averaged over each trajectory's frames, then over trajectories: > 0, the spread "
+                     "is larger where the error is; an interval that holds 0, no measured relation.",
+                     ["setting", "spread–error ρ [95 % CI]", "trajectories"])
     for r in ensembles:
         count = sum(1 for v in r["per_trajectory"]["spread_error_rho"] if v == v)  # not NaN
         lines.append(f"| {r['setting']} | {_with_interval(r['spread_error_rho'], r['spread_error_rho_ci95'])} | {count} |")
