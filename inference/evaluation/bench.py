@@ -29,14 +29,9 @@ from touchanything.inference.engine.engine_setting import EngineSetting, compute
 from touchanything.inference.engine.ensemble_engine import engine_for
 from touchanything.inference.engine.onnx_export import export_onnx
 from touchanything.inference.engine.streaming_engine import StreamingEngine
-from touchanything.inference.evaluation.bench_accuracy import (
-    SPREAD_ERROR,
-    HeldOut,
-    ModelAccuracy,
-    SettingAccuracy,
-    model_accuracy,
-)
+from touchanything.inference.evaluation.bench_accuracy import HeldOut, ModelAccuracy, SettingAccuracy, model_accuracy
 from touchanything.inference.evaluation.bench_data import resident_mb
+from touchanything.inference.evaluation.bench_intervals import SPREAD_ERROR
 from touchanything.inference.evaluation.bench_setting import settings_for
 from touchanything.inference.evaluation.metrics import aggregate
 from touchanything.inference.evaluation.vision_share import vision_shares

@@ -27,13 +27,11 @@ from touchanything.inference.engine.engine_setting import EngineSetting
 from touchanything.inference.engine.ensemble_engine import engine_for
 from touchanything.inference.engine.streaming_engine import StreamingEngine
 from touchanything.inference.evaluation.bench_data import BenchEpisode, load_episodes, resident_mb
+from touchanything.inference.evaluation.bench_intervals import SPREAD_ERROR
 from touchanything.inference.evaluation.evaluation import trajectory_metrics
 from touchanything.inference.evaluation.spread_error import trajectory_correlation
 from touchanything.inference.model.models import TactileModel
 from touchanything.inference.model.preprocess import blank_images
-
-SPREAD_ERROR = "spread_error_rho"
-"""An ensemble setting's per-trajectory rank correlation of its members' spread with its error (`spread_error`)."""
 
 
 @dataclass(frozen=True)

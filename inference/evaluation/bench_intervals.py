@@ -14,11 +14,13 @@ import math
 import numpy as np
 
 from touchanything.inference.engine.engine_setting import EngineSetting, parse_setting
-from touchanything.inference.evaluation.bench_accuracy import SPREAD_ERROR
 from touchanything.inference.evaluation.bench_setting import reference_of
 from touchanything.inference.evaluation.bootstrap import Resampler
 
 INTERVAL_METRICS = ("volumetric_iou", "contact_iou")
+SPREAD_ERROR = "spread_error_rho"
+"""An ensemble setting's per-trajectory rank correlation of its members' spread with its error (`spread_error`),
+given an interval like INTERVAL_METRICS where a row has it."""
 
 
 def align_rows(rows: list[dict], own: list[dict], trajectories: list[dict]) -> None:

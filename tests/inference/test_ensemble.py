@@ -220,9 +220,9 @@ def test_bench_measures_whether_an_ensembles_spread_ranks_its_error(tmp_path):
     the report a line for it; a single model's row carries none."""
     from touchanything.app.sessions.bundled import sample_episodes
     from touchanything.inference.evaluation.bench import accuracy_fields
-    from touchanything.inference.evaluation.bench_accuracy import SPREAD_ERROR, replay_outputs, settings_accuracy
+    from touchanything.inference.evaluation.bench_accuracy import replay_outputs, settings_accuracy
     from touchanything.inference.evaluation.bench_data import load_episode
-    from touchanything.inference.evaluation.bench_intervals import add_intervals
+    from touchanything.inference.evaluation.bench_intervals import SPREAD_ERROR, add_intervals
     from touchanything.inference.evaluation.bench_report import spread_error_lines
 
     checkpoint = ensemble_folder(tmp_path, [perturbed_pico(tmp_path / "perturbed")])
