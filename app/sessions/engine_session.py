@@ -35,6 +35,7 @@ from touchanything.app.sessions.engine_choice import (
     model_label,
     tiers_for,
 )
+from touchanything.app.sessions.published_record import PublishedRecord
 from touchanything.app.sessions.rerun_sink import RerunSink
 from touchanything.app.sessions.setting_choice import display_atlas, running_accuracy
 from touchanything.core.errors import UserError
@@ -87,13 +88,8 @@ class EngineSession:
         self._prediction: PredictionRecord | None = None
         """The newest prediction (None after a restart, until the engine predicts again), the measured pressure of
         its frame and their facts."""
-        self._published: tuple[Snapshot | None, PredictionRecord | None] = (None, None)
+        self._shown = PublishedRecord(self._lock)
         """What the dashboard shows: (snapshot, prediction record) as last published (see the module)."""
-        self._news = threading.Condition(self._lock)
-        self._news_count = 0
-        """Records published so far."""
-        self._held_until: float | None = None
-        """While a snapshot handed to the engine waits for a prediction: when it is published without one."""
         self._engine = engine
         """The engine whose predictions count: one still in flight from an engine switched away is dropped."""
         self._pose_only = engine is not None and engine.blank
@@ -156,7 +152,7 @@ class EngineSession:
             while len(self._recent) > RECENT_FRAMES:
                 self._recent.pop(next(iter(self._recent)))
             if self.live is not None and predict:
-                self._held_until = self._held_until or time.monotonic() + PREDICTION_WAIT_S
+                self._shown.hold(PREDICTION_WAIT_S)
             else:
                 self._publish()
         self.frames.tick()
@@ -238,35 +234,24 @@ class EngineSession:
 
     def _publish(self) -> None:
         """Make the newest snapshot and prediction the shown record, in one step (the lock is held)."""
-        self._published = (self._snapshot, self._prediction)
-        self._held_until = None
-        self._news_count += 1
-        self._news.notify_all()
+        self._shown.publish((self._snapshot, self._prediction))
 
     def _publish_overdue(self) -> None:
         """Publish a snapshot that waited PREDICTION_WAIT_S for a prediction without one (the lock is held)."""
-        if self._held_until is not None and time.monotonic() >= self._held_until:
+        if self._shown.overdue():
             self._publish()
 
     def wait_for_news(self, seen: int, timeout: float) -> int:
         """Block until more than `seen` records were published (`SessionState.news`), or `timeout` s passed;
         the number published now."""
-        deadline = time.monotonic() + timeout
-        with self._news:
-            while self._news_count == seen:
-                self._publish_overdue()
-                now = time.monotonic()
-                if self._news_count != seen or now >= deadline:
-                    break
-                self._news.wait(min(deadline, self._held_until or deadline) - now)
-            return self._news_count
+        return self._shown.wait(seen, timeout, self._publish_overdue)
 
     def state(self) -> SessionState:
         """The session now, its snapshot and prediction the published record. Paused, nothing runs: the engine's
         rate reads 0 and its row says "paused" (not the rate it had)."""
         with self._lock:
             self._publish_overdue()
-            snapshot, record = self._published
+            snapshot, record = self._shown.shown
             prediction, truth, facts = record or (None, None, None)
             playback = self.playback()
             paused = playback is not None and playback.paused
@@ -287,7 +272,7 @@ class EngineSession:
                 message=self.message, recording=self.recording_status(), setting=self._setting_name(),
                 step_p99_ms=self._step_p99(), steps_timed=len(self._steps),
                 atlas=self.atlas, atlas_note=self.atlas_note,
-                members=self.choice.setting.members if self.live is not None else 1, news=self._news_count)
+                members=self.choice.setting.members if self.live is not None else 1, news=self._shown.count)
 
     def _step_p99(self) -> float | None:
         """p99 of the engine's recent step times (None: too few yet); an overrun of the budget is said once."""
