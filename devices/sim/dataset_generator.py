@@ -7,8 +7,9 @@ from __future__ import annotations
 import contextlib
 import json
 import random
+import signal
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,6 +59,32 @@ def episode_specs(config: SimulationConfig) -> list[EpisodeSpec]:
                         f"sim{config.seed:04d}_{i:05d}") for i in range(config.episodes)]
 
 
+def _leave_signals_to_the_command() -> None:
+    """A worker's initializer: Ctrl-C (sent to the whole foreground group) is the command's to handle, and SIGTERM
+    ends the worker at once (a forked worker inherits the command's handlers, which would raise inside the episode)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+@contextlib.contextmanager
+def _worker_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """A pool that a stopped command stops at once: on an exception (Ctrl-C, SIGTERM, a failed episode) the
+    episodes in progress are abandoned, their workers terminated — what Python 3.14's `terminate_workers` does —
+    instead of waited for (an episode takes tens of seconds; the caller removes the half-written dataset)."""
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_leave_signals_to_the_command)
+    try:
+        yield pool
+    except BaseException:
+        processes = list((pool._processes or {}).values())  # noqa: SLF001 - no public way before Python 3.14
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            process.join()
+        raise
+    pool.shutdown(wait=True)
+
+
 def _generate(args: tuple[Path, EpisodeSpec]) -> tuple[EpisodeStats, bool]:
     """The episode of `spec` written under `root`, from the user cache of episodes when an earlier run made it
     (`episode_cache`), else simulated and cached; and whether it came from the cache."""
@@ -80,7 +107,7 @@ def simulate_dataset(out: Path, config: SimulationConfig,
     results: list[EpisodeStats] = []
     cached = 0
     with contextlib.ExitStack() as stack:
-        pool = stack.enter_context(ProcessPoolExecutor(max_workers=config.workers)) if config.workers > 1 else None
+        pool = stack.enter_context(_worker_pool(config.workers)) if config.workers > 1 else None
         for stats, from_cache in (pool.map(_generate, jobs) if pool else map(_generate, jobs)):
             results.append(stats)
             cached += from_cache

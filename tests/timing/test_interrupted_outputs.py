@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import psutil
 import pytest
 
 from touchanything.app.cli import main
@@ -18,9 +19,9 @@ from touchanything.core.output_safety import replacing
 from touchanything.core.temporary_files import PARTIAL, remove_left_behind
 
 
-def start(argv: list[str]) -> subprocess.Popen:
+def start(argv: list[str], **popen) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "touchanything.app.cli", *argv], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True, **popen)
 
 
 def wait_for_partial(folder: Path, child: subprocess.Popen, seconds: float = 120) -> Path:
@@ -44,6 +45,31 @@ def test_a_signal_during_convert_leaves_nothing_half_written(tmp_path, signum, s
     assert child.returncode == status, err
     assert err.strip().splitlines()[-1].startswith("touchanything convert: ") and "Traceback" not in err
     assert not list(out.rglob(f"*{PARTIAL}*"))
+
+
+@pytest.mark.parametrize("signum, status, whole_group", [(signal.SIGTERM, 143, False), (signal.SIGINT, 130, True)])
+def test_a_stopped_simulate_stops_at_once_and_leaves_no_worker(tmp_path, monkeypatch, signum, status, whole_group):
+    """Episodes of a minute take a worker far longer than the 15 s allowed to stop: the episodes in progress are
+    abandoned, not waited for. SIGINT goes to the whole process group, as a terminal's Ctrl-C does."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    out = tmp_path / "sim"
+    child = start(["simulate", str(out), "--episodes", "4", "--seconds", "60", "--workers", "2"], start_new_session=True)
+    wait_for_partial(tmp_path, child)
+    workers = []
+    while len(workers) < 2 and child.poll() is None:
+        workers = psutil.Process(child.pid).children()
+        time.sleep(0.05)
+    time.sleep(1.0)  # the workers are into their first episode
+    os.killpg(child.pid, signum) if whole_group else child.send_signal(signum)
+    try:
+        _, err = child.communicate(timeout=15)
+    except subprocess.TimeoutExpired:
+        os.killpg(child.pid, signal.SIGKILL)
+        raise AssertionError("simulate waited for the episodes in progress") from None
+    assert child.returncode == status and "Traceback" not in err, err
+    assert err.strip().splitlines()[-1].startswith("touchanything simulate: ")
+    assert not [w for w in workers if w.is_running() and w.status() != psutil.STATUS_ZOMBIE]
+    assert not out.exists() and not list(tmp_path.glob(f"*{PARTIAL}*"))
 
 
 def test_sigterm_during_export_lerobot_leaves_no_half_dataset(tmp_path):
