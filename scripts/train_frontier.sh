@@ -6,12 +6,12 @@
 #   resolution  pico at 96 and 128 px (configs/pico_96.yaml, configs/pico_128.yaml)
 #   ensembles   pico with seeds 1, 2 and 3 (configs/pico_seedN.yaml): with the bundled pico (seed 42) the members
 #               of a 4-member ensemble, all of one recipe and data
-# Resumable: a stopped run (a session that ends kills it) continues from its last.pth when this script is run
-# again; a finished run (data/runs/RUN/.done) and an evaluation whose results.json exists are skipped. Two
-# trainings run side by side, one torch thread each. Run from the repository root after scripts/make_datasets.sh
-# has made the held-out set and the ~400 training trajectories: a run whose data is not made yet (twice the data:
-# split_train_2x.json) waits, said in one line, and so does the evaluation on the fresh seed; run this script
-# again once scripts/make_datasets.sh has made them. The tables cover the runs trained so far.
+# Resumable: a stopped run (a session that ends kills it) continues from its last.pth when this script is run again; a
+# finished run (data/runs/RUN/.done) and an evaluation whose results.json exists are skipped. Two trainings run side
+# by side, one torch thread each, the next starting as soon as one ends. Run from the repository root after
+# scripts/make_datasets.sh has made the held-out set and the ~400 training trajectories: a run whose data is not made
+# yet (twice the data: split_train_2x.json) waits, said in one line, and so does the evaluation on the fresh seed; run
+# this script again once scripts/make_datasets.sh has made them. The tables cover the runs trained so far.
 set -euo pipefail
 TA=.venv/bin/touchanything
 for needed in data/split_train.json data/split_train_more.json data/heldout/split.json; do
@@ -38,11 +38,20 @@ evaluate() {  # evaluate RUN CHECKPOINT: all views, causal, both splits of the h
   done
 }
 SEEN=data/split_train.json MORE=data/split_train_more.json TWICE=data/split_train_2x.json
-train pico_seed1 pico_seed1 $MORE & train pico_96 pico_96 $MORE & wait
-train pico_seed2 pico_seed2 $MORE & train pico_seed3 pico_seed3 $MORE & wait
-train pico_128 pico_128 $MORE & train pico pico_2x $TWICE & wait
-train pico pico_162 $SEEN & train nano nano_more $MORE & wait
-train nano nano_2x $TWICE
+side_by_side() {  # side_by_side COMMAND...: in the background once fewer than two trainings run
+  while [ "$(jobs -rp | wc -l)" -ge 2 ]; do wait -n || echo "a training stopped with an error: see data/runs/*.train.log"; done
+  "$@" &
+}
+side_by_side train pico_seed1 pico_seed1 $MORE
+side_by_side train pico_96 pico_96 $MORE
+side_by_side train pico_seed2 pico_seed2 $MORE
+side_by_side train pico_seed3 pico_seed3 $MORE
+side_by_side train pico_128 pico_128 $MORE
+side_by_side train pico pico_2x $TWICE
+side_by_side train nano nano_more $MORE
+side_by_side train pico pico_162 $SEEN
+side_by_side train nano nano_2x $TWICE
+wait
 mkdir -p data/runs/bundled_pico data/runs/bundled_nano
 evaluate bundled_pico models/pico/best_model.pth
 evaluate bundled_nano models/nano/best_model.pth
