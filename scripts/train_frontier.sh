@@ -7,39 +7,47 @@
 #   ensembles   pico with seeds 1, 2 and 3 (configs/pico_seedN.yaml): with the bundled pico (seed 42) the members
 #               of a 4-member ensemble, all of one recipe and data
 # Resumable: a stopped run (a session that ends kills it) continues from its last.pth when this script is run again; a
-# finished run (data/runs/RUN/.done) and an evaluation whose results.json exists are skipped. Two trainings run side
-# by side, one torch thread each, the next starting as soon as one ends. Run from the repository root after
-# scripts/make_datasets.sh has made the held-out set and the ~400 training trajectories: a run whose data is not made
-# yet (twice the data: split_train_2x.json) waits, said in one line, and so does the evaluation on the fresh seed; run
-# this script again once scripts/make_datasets.sh has made them. The tables cover the runs trained so far.
+# finished run (data/runs/RUN/.done) and an evaluation whose results.json exists are skipped, and a run that another
+# instance of this script is training or evaluating is left to it (data/runs/RUN.lock). Two jobs (trainings, the
+# bundled models' evaluations) run side by side, one torch thread each, the next starting as soon as one ends. Run
+# from the repository root once scripts/make_datasets.sh has made the held-out set and the 162 training trajectories
+# (sim240, sim_extra, sim_test): a run whose data is not made yet (~400 trajectories: split_train_more.json; twice
+# that: split_train_2x.json) waits, said in one line, and so does the evaluation on the fresh seed; run this script
+# again as scripts/make_datasets.sh makes them. The tables cover the runs trained so far.
 set -euo pipefail
 TA=.venv/bin/touchanything
-for needed in data/split_train.json data/split_train_more.json data/heldout/split.json; do
+for needed in data/split_train.json data/heldout/split.json; do
   [ -f "$needed" ] || { echo "$needed is missing: run scripts/make_datasets.sh first" >&2; exit 2; }
 done
 mkdir -p data/runs
+hold() {  # hold RUN: true when this shell now holds RUN's lock (kept until it exits); else says who has it
+  exec {lock}>"data/runs/$1.lock"
+  flock -n "$lock" || { echo "$1 is being trained or evaluated by another run of this script"; return 1; }
+}
 train() {  # train CONFIG RUN SPLIT_FILE: configs/CONFIG.yaml into data/runs/RUN, continued from its last.pth
   local out=data/runs/$2 resume=()
   [ -f "$out/.done" ] && return 0
   [ -f "$3" ] || { echo "$2 waits for $3 (scripts/make_datasets.sh)"; return 0; }
+  hold "$2" || return 0
   [ -f "$out/last.pth" ] && resume=(--resume "$out/last.pth")
   OMP_NUM_THREADS=1 $TA train --config "configs/$1.yaml" --data data/sim240_h5 --split-file "$3" --out "$out" \
     "${resume[@]}" >> "data/runs/$2.train.log" 2>&1
   touch "$out/.done"
 }
-evaluate() {  # evaluate RUN CHECKPOINT: all views, causal, both splits of the held-out set and of the fresh seed
+evaluate() (  # evaluate RUN CHECKPOINT: all views, causal, both splits of the held-out set and of the fresh seed
+  hold "$1" || exit 0
   for root in heldout fresh; do
     [ -f "data/$root/split.json" ] || { echo "$1 on data/$root waits for scripts/make_datasets.sh"; continue; }
     for split in test_seen test_unseen; do
-      local out="data/runs/$1/${root}_$split"
-      [ -f "$out/results.json" ] || $TA eval --checkpoint "$2" --data "data/$root" --split $split --ego-path views \
+      out="data/runs/$1/${root}_$split"
+      [ -f "$out/results.json" ] || OMP_NUM_THREADS=1 $TA eval --checkpoint "$2" --data "data/$root" --split $split --ego-path views \
         --device cpu --views all --out "$out" --overwrite > /dev/null
     done
   done
-}
+)
 SEEN=data/split_train.json MORE=data/split_train_more.json TWICE=data/split_train_2x.json
-side_by_side() {  # side_by_side COMMAND...: in the background once fewer than two trainings run
-  while [ "$(jobs -rp | wc -l)" -ge 2 ]; do wait -n || echo "a training stopped with an error: see data/runs/*.train.log"; done
+side_by_side() {  # side_by_side COMMAND...: in the background once fewer than two jobs run
+  while [ "$(jobs -rp | wc -l)" -ge 2 ]; do wait -n || echo "a job stopped with an error: see data/runs/*.train.log"; done
   "$@" &
 }
 side_by_side train pico_seed1 pico_seed1 $MORE
@@ -51,15 +59,15 @@ side_by_side train pico pico_2x $TWICE
 side_by_side train nano nano_more $MORE
 side_by_side train pico pico_162 $SEEN
 side_by_side train nano nano_2x $TWICE
-wait
 mkdir -p data/runs/bundled_pico data/runs/bundled_nano
-evaluate bundled_pico models/pico/best_model.pth
-evaluate bundled_nano models/nano/best_model.pth
+side_by_side evaluate bundled_pico models/pico/best_model.pth
+side_by_side evaluate bundled_nano models/nano/best_model.pth
+wait
 trained=()
 for run in pico_162 pico_2x nano_more nano_2x pico_96 pico_128 pico_seed1 pico_seed2 pico_seed3; do
   [ -f "data/runs/$run/.done" ] || continue  # not trained yet: a half-trained best_model.pth is never evaluated
   evaluate "$run" "data/runs/$run/best_model.pth"
-  trained+=("$run")
+  if [ -f "data/runs/$run/heldout_test_unseen/results.json" ]; then trained+=("$run"); fi  # else another instance evaluates it
 done
 for set in heldout fresh; do
   [ -f "data/$set/split.json" ] || continue
