@@ -56,9 +56,9 @@ side_by_side train pico_seed2 pico_seed2 $MORE
 side_by_side train pico_seed3 pico_seed3 $MORE
 side_by_side train pico_128 pico_128 $MORE
 side_by_side train pico pico_2x $TWICE
-side_by_side train nano nano_more $MORE
-side_by_side train pico pico_162 $SEEN
 side_by_side train nano nano_2x $TWICE
+side_by_side train pico pico_162 $SEEN
+side_by_side train nano nano_more $MORE  # nano at 398 is in docs/findings.md; retrained for paired intervals
 mkdir -p data/runs/bundled_pico data/runs/bundled_nano
 side_by_side evaluate bundled_pico models/pico/best_model.pth
 side_by_side evaluate bundled_nano models/nano/best_model.pth
