@@ -16,14 +16,23 @@
 # 67 test_seen, 41 test_unseen).
 # A step whose output is there is skipped. Run from the repository root after `make test` (or any command that
 # created .venv); about 4 h on the 2-core CPU machine (simulation ~20 frames/s with --workers 2) (docs/performance.md, "Simulation").
+# The HDF5 files take about 93 MB per 10 s episode (the raw episodes 3 MB): all six datasets would need about 110 GB,
+# more than the ~100 GB this machine's disk holds beside the frame caches, so a conversion that the free space cannot
+# hold stops the script before it starts, said in one line (sim_more2's 520 episodes: about 49 GB).
 set -euo pipefail
 TA=.venv/bin/touchanything
 # The episodes simulated so far live beside the datasets (devices/sim/episode_cache.py): a run stopped halfway —
 # a session that ends — and run again on this checkout copies them instead of simulating them again.
 export XDG_CACHE_HOME="$PWD/data/.cache"
+H5_MB_PER_EPISODE=93  # a 10 s episode's HDF5 at gzip level 1 (sim_more_h5: 27.8 GB for 300)
+enough_disk() {  # enough_disk NAME EPISODES: stop, saying so, before a conversion the disk cannot hold (2 GB spare)
+  local need=$(( $2 * H5_MB_PER_EPISODE / 1024 + 2 )) free
+  free=$(df --output=avail -BG data | tail -1 | tr -dc 0-9)
+  [ "$free" -ge "$need" ] || { echo "data/$1_h5 needs about $need GB and $free GB are free: not converted" >&2; exit 3; }
+}
 simulate() {  # simulate NAME EPISODES SEED, then write the split files its datasets complete
   [ -d "data/$1" ] || $TA simulate "data/$1" --episodes "$2" --seconds 10 --seed "$3" --workers 2
-  [ -d "data/$1_h5" ] || $TA convert "data/$1" "data/$1_h5" --workers 2 --compression-level 1
+  [ -d "data/$1_h5" ] || { enough_disk "$1" "$2"; $TA convert "data/$1" "data/$1_h5" --workers 2 --compression-level 1; }
   .venv/bin/python scripts/write_splits.py --data data
 }
 simulate sim240 240 11
