@@ -11,14 +11,19 @@ size, (T, V, S, S, 3) uint8 RGB in the order of `views`, resized exactly as the 
   only files whose size or time changed.
 - **Atomic:** an entry is written under a temporary name and renamed when complete; an interrupted build
   leaves no entry (its temporary file is removed, or replaced by the next build).
+- **Built once:** an entry is built under the folder's lock (`.build.lock`), so two trainings side by side on one
+  dataset decode each trajectory once, the second waiting for the first's entry.
 - **Per process:** memory maps are opened on first use in each process (DataLoader workers open their own).
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import json
 import os
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import h5py
@@ -30,6 +35,7 @@ from touchanything.inference.model.preprocess import resize_frame
 
 CACHE_DIR = ".frame_cache"
 INDEX = "index.json"
+BUILD_LOCK = ".build.lock"
 
 
 def file_digest(path: Path) -> str:
@@ -120,11 +126,23 @@ class FrameCache:
         if target.is_file():
             self.reused += 1
         else:
-            frames = decode_frames(path, views, self.size)
-            self._write(target, lambda handle: np.save(handle, frames))
-            self.built += 1
+            with self._building():
+                if target.is_file():  # another process built it while this one waited
+                    self.reused += 1
+                else:
+                    frames = decode_frames(path, views, self.size)
+                    self._write(target, lambda handle: np.save(handle, frames))
+                    self.built += 1
         self._paths[path] = target
         return target
+
+    @contextlib.contextmanager
+    def _building(self) -> Iterator[None]:
+        """Hold the folder's build lock: two trainings side by side on one dataset decode each trajectory once, the
+        second waiting for the first's entry instead of decoding it again (released when the process ends)."""
+        with open(self.folder / BUILD_LOCK, "a") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            yield
 
     def frames(self, path: Path, views: tuple[str, ...]) -> np.ndarray:
         """(T, V, S, S, 3) uint8, read-only, memory-mapped in this process."""

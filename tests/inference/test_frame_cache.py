@@ -2,8 +2,12 @@
 changes, written atomically, and read the same by loader workers."""
 from __future__ import annotations
 
+import fcntl
 import os
 import shutil
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import h5py
@@ -14,7 +18,7 @@ import torch
 from touchanything.core.errors import UserError
 from touchanything.inference.training import frame_cache as frame_cache_module
 from touchanything.inference.training.clip_dataset import ClipDataset, clip_loader
-from touchanything.inference.training.frame_cache import CACHE_DIR, FrameCache
+from touchanything.inference.training.frame_cache import BUILD_LOCK, CACHE_DIR, FrameCache, decode_frames
 
 
 @pytest.fixture
@@ -81,7 +85,7 @@ def test_an_interrupted_build_leaves_no_entry_and_no_temporary_file(root, monkey
     monkeypatch.setattr(np, "save", failing_save)
     with pytest.raises(OSError):
         cache.entry(trajectories(root)[0], ("ego",))
-    leftovers = [p.name for p in (root / CACHE_DIR).iterdir() if p.name != "index.json"]
+    leftovers = [p.name for p in (root / CACHE_DIR).iterdir() if p.name not in ("index.json", BUILD_LOCK)]
     assert leftovers == []
 
 
@@ -115,3 +119,22 @@ def test_the_index_spares_hashing_unchanged_files(root, monkeypatch):
     os.utime(files[0], ns=(0, 0))
     FrameCache.beside(root, 56).digest(files[0])
     assert hashed == [files[0]]
+
+
+def test_a_second_training_waits_for_the_entry_the_first_is_building(root):
+    """Two trainings side by side on one dataset: while one holds the build lock, the other waits and then reuses
+    the entry it finds, instead of decoding the trajectory a second time."""
+    file, views = trajectories(root)[0], ("ego", "wrist_left", "wrist_right")
+    folder = FrameCache.beside(root, 56).folder
+    code = ("import sys; from pathlib import Path; from touchanything.inference.training.frame_cache import FrameCache; "
+            "cache = FrameCache.beside(Path(sys.argv[1]), 56); print('ready', flush=True); "
+            f"cache.entry(Path(sys.argv[2]), {views!r}); print(cache.built, cache.reused)")
+    with open(folder / BUILD_LOCK, "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # the first training, building this entry
+        child = subprocess.Popen([sys.executable, "-c", code, str(root), str(file)], stdout=subprocess.PIPE, text=True)
+        assert child.stdout.readline() == "ready\n"
+        time.sleep(1.0)  # the second training reaches the entry
+        name = f"{FrameCache(folder, 56).digest(file)}.{'-'.join(views)}.56px.npy"
+        np.save(folder / name, decode_frames(file, views, 56))
+    out, _ = child.communicate(timeout=60)
+    assert out.split() == ["0", "1"]  # built none, reused the first one's
