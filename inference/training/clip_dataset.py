@@ -133,7 +133,7 @@ class ClipDataset(Dataset):
             return dict.fromkeys(self.episodes[e].views, black)
         if self.cache is not None:
             episode = self.episodes[e]
-            clip = self.cache.frames(episode.path, episode.views)[frames]
+            clip = self.cache.clip(episode.path, episode.views, frames)
             return {view: to_model_input(clip[:, v]) for v, view in enumerate(episode.views)}
         if get_worker_info() is not None:
             return self._read(self._worker_file(e), e, frames)

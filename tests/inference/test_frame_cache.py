@@ -16,9 +16,10 @@ import pytest
 import torch
 
 from touchanything.core.errors import UserError
+from touchanything.inference.model.preprocess import resize_frame
 from touchanything.inference.training import frame_cache as frame_cache_module
 from touchanything.inference.training.clip_dataset import ClipDataset, clip_loader
-from touchanything.inference.training.frame_cache import BUILD_LOCK, CACHE_DIR, FrameCache, decode_frames
+from touchanything.inference.training.frame_cache import BUILD_LOCK, CACHE_DIR, FrameCache, write_entry
 
 
 @pytest.fixture
@@ -47,7 +48,7 @@ def test_cached_clips_equal_clips_decoded_from_the_file(root):
 def test_entries_are_reused_by_content_and_rebuilt_when_it_changes(root):
     files = trajectories(root)
     ClipDataset(files, 56, cache=FrameCache.beside(root, 56))
-    entries = sorted((root / CACHE_DIR).glob("*.npy"))
+    entries = sorted((root / CACHE_DIR).glob("*.h5"))
     assert len(entries) == len(files)
 
     again = FrameCache.beside(root, 56)
@@ -63,27 +64,31 @@ def test_entries_are_reused_by_content_and_rebuilt_when_it_changes(root):
     with h5py.File(files[0], "r+") as file:  # new content: a new entry, with the new frames
         file["images/chest_color"][0] = 255
     changed = FrameCache.beside(root, 56)
-    frames = changed.frames(files[0], ("ego", "wrist_left", "wrist_right"))
-    assert changed.built == 1 and np.all(frames[0, 0] == 255)
-    assert len(list((root / CACHE_DIR).glob("*.npy"))) == len(files) + 1
+    frames = changed.clip(files[0], ("ego", "wrist_left", "wrist_right"), np.array([0, 1]))
+    assert changed.built == 1 and np.all(frames[0, 0] == 255) and not np.all(frames[1, 0] == 255)
+    assert len(list((root / CACHE_DIR).glob("*.h5"))) == len(files) + 1
 
 
 def test_an_interrupted_build_leaves_no_entry_and_no_temporary_file(root, monkeypatch):
-    def broken(path, views, size):
-        raise KeyboardInterrupt
+    calls = []
+
+    def interrupted(image, size):  # Ctrl-C on the second frame: the entry's file is half written
+        calls.append(size)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return resize_frame(image, size)
 
     cache = FrameCache.beside(root, 56)
-    monkeypatch.setattr(frame_cache_module, "decode_frames", broken)
+    monkeypatch.setattr(frame_cache_module, "resize_frame", interrupted)
     with pytest.raises(KeyboardInterrupt):
         cache.entry(trajectories(root)[0], ("ego",))
     monkeypatch.undo()
 
-    def failing_save(handle, frames):
-        handle.write(b"partial")
+    def full_disk(image, size):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(np, "save", failing_save)
-    with pytest.raises(OSError):
+    monkeypatch.setattr(frame_cache_module, "resize_frame", full_disk)
+    with pytest.raises(UserError, match="frame 0 unreadable"):
         cache.entry(trajectories(root)[0], ("ego",))
     leftovers = [p.name for p in (root / CACHE_DIR).iterdir() if p.name not in ("index.json", BUILD_LOCK)]
     assert leftovers == []
@@ -134,7 +139,31 @@ def test_a_second_training_waits_for_the_entry_the_first_is_building(root):
         child = subprocess.Popen([sys.executable, "-c", code, str(root), str(file)], stdout=subprocess.PIPE, text=True)
         assert child.stdout.readline() == "ready\n"
         time.sleep(1.0)  # the second training reaches the entry
-        name = f"{FrameCache(folder, 56).digest(file)}.{'-'.join(views)}.56px.npy"
-        np.save(folder / name, decode_frames(file, views, 56))
+        name = f"{FrameCache(folder, 56).digest(file)}.{'-'.join(views)}.56px.h5"
+        write_entry(file, views, 56, folder / name)
     out, _ = child.communicate(timeout=60)
     assert out.split() == ["0", "1"]  # built none, reused the first one's
+
+
+def test_entries_are_compressed_and_read_the_same_in_a_forked_child(root):
+    """An entry is smaller than the frames it holds (gzip chunks), and a child forked after the parent read it
+    opens its own handle and reads the same frames (a DataLoader worker of the default start method)."""
+    file, views = trajectories(root)[0], ("ego", "wrist_left", "wrist_right")
+    cache = FrameCache.beside(root, 56)
+    frames = np.array([0, 2, 4])
+    in_parent = cache.clip(file, views, frames)
+    parent_handle = cache._open[file]
+    with h5py.File(cache.entry(file, views), "r") as entry:
+        count = len(entry["frames"])
+    assert (root / CACHE_DIR / cache.entry(file, views).name).stat().st_size < count * 3 * 56 * 56 * 3 / 1.5
+    reader, writer = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: report whether its frames equal the parent's, never return into pytest
+        try:
+            same = np.array_equal(cache.clip(file, views, frames), in_parent) and cache._open[file] is not parent_handle
+            os.write(writer, b"same" if same else b"different")
+        finally:
+            os._exit(0)
+    os.close(writer)
+    os.waitpid(pid, 0)
+    assert os.read(reader, 16) == b"same"
