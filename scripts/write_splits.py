@@ -9,7 +9,9 @@ while the later ones are still being simulated:
                                 trajectory, plus every seed-13 episode, seen and unseen objects kept apart (108)
         — these four once sim240_h5, sim_extra_h5 and sim_test_h5 exist;
     data/split_train_more.json  split_train.json plus sim_more's seen episodes (about 400) — once sim_more_h5 exists;
-    data/split_train_2x.json    split_train_more.json plus sim_more2's seen episodes (about 800) — once sim_more2_h5 exists;
+    data/split_train_2x.json    split_train_more.json plus sim_more2's seen episodes (about 800) — once sim_more2 exists:
+                                its raw episode folders (kept raw, too large as HDF5; `train` decodes their frames
+                                into its frame cache);
     data/fresh/split.json       the seed-16 episodes, seen and unseen objects apart (never trained on) — once sim_fresh_h5 exists.
 
     python scripts/write_splits.py [--data data]
@@ -28,12 +30,14 @@ SEEN = ("train", "val", "test_seen")
 """A dataset's lists whose episodes show seen objects (its test_unseen ones show the held-out objects)."""
 
 
-def read(data: Path, root: str) -> dict[str, list[str]] | None:
-    """The split.json of dataset `root` under `data`, its paths made absolute; None when it is not made yet."""
+def read(data: Path, root: str, raw: bool = False) -> dict[str, list[str]] | None:
+    """The split.json of dataset `root` under `data`, its paths made absolute; None when it is not made yet. `raw`: a
+    raw dataset's split names the HDF5 files `convert` would make; the episode folders are listed instead."""
     path = data / root / "split.json"
     if not path.is_file():
         return None
-    return {key: [str(data / root / p) for p in paths] for key, paths in json.loads(path.read_text()).items()}
+    return {key: [str(data / root / (p.removesuffix(".hdf5") if raw else p)) for p in paths]
+            for key, paths in json.loads(path.read_text()).items()}
 
 
 def seen(split: dict[str, list[str]]) -> list[str]:
@@ -55,7 +59,7 @@ def write_splits(data: Path) -> tuple[list[str], list[str]]:
     """Write every split file whose datasets exist under `data`; (what was written, what waits and for what)."""
     data = data.resolve()
     main, extra, test = read(data, "sim240_h5"), read(data, "sim_extra_h5"), read(data, "sim_test_h5")
-    more, more2, fresh = read(data, "sim_more_h5"), read(data, "sim_more2_h5"), read(data, "sim_fresh_h5")
+    more, more2, fresh = read(data, "sim_more_h5"), read(data, "sim_more2", raw=True), read(data, "sim_fresh_h5")
     written: list[str] = []
     waiting: list[str] = []
     if fresh is None:
@@ -79,7 +83,7 @@ def write_splits(data: Path) -> tuple[list[str], list[str]]:
         bigger = dict(split, train=split["train"] + seen(more))
         trained.append(("split_train_more.json", bigger))
         if more2 is None:
-            waiting.append("data/split_train_2x.json waits for sim_more2_h5")
+            waiting.append("data/split_train_2x.json waits for sim_more2")
         else:
             trained.append(("split_train_2x.json", dict(bigger, train=bigger["train"] + seen(more2))))
     for name, training in trained:

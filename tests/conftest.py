@@ -82,15 +82,22 @@ def episode_dir(tmp_path: Path) -> Path:
 
 
 @pytest.fixture(scope="session")
-def sim_hdf5_root(tmp_path_factory) -> Path:
-    """Three short simulated episodes converted to HDF5, with their split.json (seed 5)."""
-    from touchanything.devices.episodes.dataset_conversion import convert_dataset
+def sim_raw_root(tmp_path_factory) -> Path:
+    """Three short simulated raw episodes, with their split.json (seed 5). Read only."""
     from touchanything.devices.sim.dataset_generator import SimulationConfig, simulate_dataset
 
     raw = tmp_path_factory.mktemp("sim_raw")
     simulate_dataset(raw, SimulationConfig(episodes=3, seconds=2.0, seed=5, workers=1))
+    return raw
+
+
+@pytest.fixture(scope="session")
+def sim_hdf5_root(sim_raw_root, tmp_path_factory) -> Path:
+    """The three episodes of `sim_raw_root` converted to HDF5, with their split.json."""
+    from touchanything.devices.episodes.dataset_conversion import convert_dataset
+
     out = tmp_path_factory.mktemp("sim_h5")
-    convert_dataset(raw, out, compression_level=1)
+    convert_dataset(sim_raw_root, out, compression_level=1)
     return out
 
 

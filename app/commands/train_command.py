@@ -1,4 +1,4 @@
-"""`touchanything train --config CFG --data HDF5_ROOT`: train (one process, or several under torchrun)."""
+"""`touchanything train --config CFG --data ROOT`: train (one process, or several under torchrun)."""
 from __future__ import annotations
 
 import argparse
@@ -11,9 +11,10 @@ from touchanything.core.output_safety import add_overwrite_argument, check_outpu
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
-    parser = commands.add_parser("train", help="train a model on HDF5 trajectories (torchrun for several GPUs)")
+    parser = commands.add_parser("train", help="train a model on HDF5 trajectories or raw episode folders (torchrun for several GPUs)")
     parser.add_argument("--config", type=Path, required=True, help="training config (official structure)")
-    parser.add_argument("--data", type=Path, required=True, help="HDF5 root holding split.json")
+    parser.add_argument("--data", type=Path, required=True,
+                        help="dataset root holding split.json; its .frame_cache keeps the decoded frames")
     parser.add_argument("--split-file", type=Path, help="split file (default: DATA/split.json)")
     parser.add_argument("--out", type=Path, help="checkpoint folder (default: checkpoints/<time>_<backbone>_<config>)")
     parser.add_argument("--resume", type=Path, help="continue from a checkpoint of the same run (e.g. OUT/last.pth)")

@@ -55,6 +55,12 @@ def range_problem(grids: np.ndarray) -> str | None:
             "metrics divide the trajectory by its maximum (the official fallback)")
 
 
+def grids_normalized(grids: np.ndarray) -> bool:
+    """Whether pressure grids (NaN = outside the layout) are stored normalised: every value in [0, 1] (the HDF5
+    attribute `pressure.normalized` that `convert` writes)."""
+    return bool(np.nanmax(grids, initial=0.0) <= 1.0 and np.nanmin(grids, initial=0.0) >= 0.0)
+
+
 def _load_npz(path: Path) -> dict[str, np.ndarray]:
     try:
         with np.load(path, allow_pickle=False) as data:

@@ -15,7 +15,7 @@ import numpy as np
 
 from touchanything.core.errors import DataError, failure_line
 from touchanything.devices.episodes.episode import Episode, problems_in_brief
-from touchanything.devices.episodes.episode_files import MAXIMA_KEYS, read_masks, read_quality
+from touchanything.devices.episodes.episode_files import MAXIMA_KEYS, grids_normalized, read_masks, read_quality
 from touchanything.devices.episodes.hdf5_episode import (
     GRID_KEYS,
     IMAGE_KEYS,
@@ -140,8 +140,7 @@ def _write_attrs(file: h5py.File, episode: Episode, frames: int, quality: dict) 
     if pressure["separate_normalization"]:
         pressure.update({key: float(attrs[key]) for key in MAXIMA_KEYS if key in attrs})
     pressure.update({k: bool(v) for k, v in attrs.items() if k.startswith("baseline_corrected_")})
-    grids = episode.pressure.grids[:frames]
-    pressure["normalized"] = bool(np.nanmax(grids, initial=0.0) <= 1.0 and np.nanmin(grids, initial=0.0) >= 0.0)
+    pressure["normalized"] = grids_normalized(episode.pressure.grids[:frames])
     file["pressure"].attrs.update(pressure)
 
 

@@ -1,16 +1,17 @@
 """Training clips: the official sampler (T = 8 frames at interval 2, non-overlapping starts 0, 15, 30, …),
-pose rules and target preparation over HDF5 trajectories, and the DataLoader that feeds them.
+pose rules and target preparation over HDF5 trajectories and raw episode folders, and the DataLoader that feeds
+them.
 
 Poses and pressure (small) are read once when the dataset is built. Frames come from a `FrameCache` (decoded
-and resized once, memory-mapped) when one is given, else they are decoded and resized per clip, inside the
-DataLoader's worker processes when there are any (`blank`: none is decoded; every view shows black frames,
-the pose-only baseline). Without a cache a worker opens each trajectory's file on first use and closes it when
-the worker exits; the main process opens a file per clip and closes it at once, so no HDF5 handle is ever open
-in a process that forks workers.
+and resized once) when one is given — always for raw episode folders — else they are decoded and resized per
+clip from the HDF5 file, inside the DataLoader's worker processes when there are any (`blank`: none is decoded;
+every view shows black frames, the pose-only baseline). Without a cache a worker opens each trajectory's file on
+first use and closes it when the worker exits; the main process opens a file per clip and closes it at once, so
+no HDF5 handle is ever open in a process that forks workers.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from multiprocessing.util import Finalize
 from pathlib import Path
 
@@ -20,8 +21,10 @@ import torch
 from torch.utils.data import DataLoader, Dataset, DistributedSampler, get_worker_info
 
 from touchanything.core.errors import UserError
+from touchanything.devices.episodes.episode_files import grids_normalized
 from touchanything.devices.episodes.episode_loader import is_hdf5_path, open_episode
 from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
+from touchanything.devices.episodes.raw_episode import is_raw_episode
 from touchanything.inference.model.model_config import CLIP_LENGTH, FRAME_INTERVAL, SPAN
 from touchanything.inference.model.pose_encoder import prepare_poses
 from touchanything.inference.model.preprocess import blank_frames, resize_frame, to_model_input
@@ -44,6 +47,10 @@ class EpisodeArrays:
     pressure: np.ndarray
     normalized: bool
 
+    def cut(self, frames: int) -> EpisodeArrays:
+        """The first `frames` frames (all when it holds fewer)."""
+        return replace(self, poses=self.poses[:frames], pressure=self.pressure[:frames])
+
 
 def episode_poses(episode, pose_source: str, fallback: str | None) -> np.ndarray | None:
     """Prepared (T, 42, 3) poses from `pose_source`; with a `fallback`, a hand invalid there takes the
@@ -60,17 +67,19 @@ def episode_poses(episode, pose_source: str, fallback: str | None) -> np.ndarray
 
 
 def load_episode(path: Path, pose_source: str, fallback: str | None = None) -> EpisodeArrays:
-    """Everything of an HDF5 trajectory but its frames; UserError when it cannot be trained on."""
-    if not is_hdf5_path(path):
-        raise UserError(f"{path}: training reads HDF5 trajectories (convert raw episodes with `touchanything convert`)")
+    """Everything of an HDF5 trajectory or a raw episode folder but its frames; UserError when it cannot be trained
+    on. A raw episode is what `convert` would make of it: normalised when its grids lie in [0, 1]."""
+    if not (is_hdf5_path(path) or is_raw_episode(path)):
+        raise UserError(f"{path}: training reads HDF5 trajectories and raw episode folders")
     with open_episode(path) as episode:
         if episode.pressure is None:
             raise UserError(f"{path}: no pressure grids; cannot train on it")
         poses = episode_poses(episode, pose_source, fallback)
         if poses is None:
             raise UserError(f"{path}: no {pose_source} poses; cannot train on it")
-        normalized = bool(episode.pressure.attrs.get("normalized", False))
-        return EpisodeArrays(Path(path), episode.view_names, poses, episode.pressure.grids.astype(np.float32), normalized)
+        grids = episode.pressure.grids
+        normalized = grids_normalized(grids) if Path(path).is_dir() else bool(episode.pressure.attrs.get("normalized", False))
+        return EpisodeArrays(Path(path), episode.view_names, poses, grids.astype(np.float32), normalized)
 
 
 def prepare_target(pressure: np.ndarray, normalized: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -100,9 +109,12 @@ class ClipDataset(Dataset):
         self.episodes = []
         self.cache = None if blank else cache
         for f in files:
-            self.episodes.append(load_episode(f, pose_source, fallback))
-            if self.cache is not None:
-                self.cache.entry(f, self.episodes[-1].views)
+            episode = load_episode(f, pose_source, fallback)
+            if self.cache is not None:  # a raw episode's videos may decode fewer frames than they declare
+                episode = episode.cut(self.cache.length(f, episode.views))
+            elif not blank and Path(f).is_dir():
+                raise UserError(f"{f}: a raw episode folder trains from the frame cache, and there is none")
+            self.episodes.append(episode)
             on_episode and on_episode()
         self.size, self.blank = size, blank
         self.offsets = np.arange(CLIP_LENGTH) * FRAME_INTERVAL

@@ -7,10 +7,13 @@ size, (N, V, S, S, 3) uint8 RGB in the order of `views`, resized exactly as the 
 (T, V, S, S, 3), a gzip-1 chunk per frame — about 3.3× smaller than the raw arrays (a 300-frame trajectory of three
 views: 3.4 MB at 64 px), a clip of 8 frames read in about 1 ms.
 
-- **By content:** the file name is the SHA-1 of the trajectory's bytes, so a changed trajectory gets a new
-  entry and an unchanged one (copied, renamed, converted again to the same bytes) reuses its entry. Digests
-  are remembered in `index.json` by path, size and modification time (as git does), so a later run hashes
-  only files whose size or time changed.
+- **HDF5 or raw:** a trajectory is an HDF5 file or a raw episode folder, whose videos are decoded as `convert`
+  decodes them — so data too large to keep as HDF5 (93 MB per 10 s episode; the raw folder: 3 MB) train from
+  their raw folders and the entries alone.
+- **By content:** the file name is the SHA-1 of the trajectory's bytes (a raw folder's: of its videos), so a
+  changed trajectory gets a new entry and an unchanged one (copied, renamed, converted again to the same bytes)
+  reuses its entry. Digests are remembered in `index.json` by path, size and modification time (as git does),
+  so a later run hashes only files whose size or time changed.
 - **Atomic:** an entry is written under a temporary name and renamed when complete; an interrupted build
   leaves no entry (its temporary file is removed, or replaced by the next build).
 - **Built once:** an entry is built under the folder's lock (`.build.lock`), so two trainings side by side on one
@@ -26,14 +29,16 @@ import hashlib
 import json
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import h5py
 import numpy as np
 
 from touchanything.core.errors import UserError
+from touchanything.core.snapshot import VIEW_NAMES
 from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
+from touchanything.devices.episodes.raw_episode import VIDEO_FILES, episode_file, open_raw_episode
 from touchanything.inference.model.preprocess import resize_frame
 
 CACHE_DIR = ".frame_cache"
@@ -48,26 +53,51 @@ def file_digest(path: Path) -> str:
         return hashlib.file_digest(handle, "sha1").hexdigest()
 
 
+@contextlib.contextmanager
+def _view_images(path: Path, views: tuple[str, ...]) -> Iterator[tuple[int, Callable[[int, int], np.ndarray | None]]]:
+    """(frame count, read(v, i) → (H, W, 3) uint8 RGB) of the `views` of an HDF5 trajectory or a raw episode folder
+    (its videos, decoded as `convert` decodes them; a frame a video cannot decode reads None); UserError for an
+    unreadable HDF5 frame or a missing video."""
+    if Path(path).is_dir():
+        with open_raw_episode(path) as episode:
+            if missing := [view for view in views if view not in episode.views]:
+                raise UserError(f"{path}: no readable {VIDEO_FILES[missing[0]]}; cannot train on its frames")
+            sources = [episode.views[view] for view in views]
+            yield min(s.num_frames for s in sources), lambda v, i: sources[v].read(i)
+        return
+    with h5py.File(path, "r") as file:
+        images = [file[IMAGE_KEYS[view]] for view in views]
+
+        def read(v: int, i: int) -> np.ndarray:
+            try:
+                return images[v][i]
+            except OSError as exc:
+                raise UserError(f"{path}: view {views[v]}: frame {i} unreadable ({exc})") from None
+
+        yield min(len(d) for d in images), read
+
+
 def write_entry(path: Path, views: tuple[str, ...], size: int, target: Path) -> None:
-    """Every frame of `views` of the HDF5 trajectory `path`, resized, into a new HDF5 file `target`: dataset `frames`
-    (T, V, S, S, 3) uint8, a gzip-1 chunk per frame; UserError for an unreadable frame."""
-    with h5py.File(path, "r") as source, h5py.File(target, "w") as out:
-        images = [source[IMAGE_KEYS[view]] for view in views]
-        shape = (len(views), size, size, 3)
-        data = out.create_dataset(FRAMES, (min(len(d) for d in images), *shape), np.uint8, chunks=(1, *shape),
+    """Every frame of `views` of a trajectory (HDF5 file or raw episode folder), resized, into a new HDF5 file
+    `target`: dataset `frames` (T, V, S, S, 3) uint8, a gzip-1 chunk per frame. A video that decodes fewer frames
+    than it declares ends the entry there, as `convert` cuts the trajectory."""
+    shape = (len(views), size, size, 3)
+    with _view_images(path, views) as (count, read), h5py.File(target, "w") as out:
+        data = out.create_dataset(FRAMES, (count, *shape), np.uint8, chunks=(1, *shape), maxshape=(None, *shape),
                                   compression="gzip", compression_opts=1)
         frame = np.empty(shape, np.uint8)
-        for i in range(len(data)):
+        for i in range(count):
+            images = [read(v, i) for v in range(len(views))]
+            if any(image is None for image in images):
+                data.resize(i, axis=0)
+                break
             for v, image in enumerate(images):
-                try:
-                    frame[v] = resize_frame(image[i], size)
-                except OSError as exc:
-                    raise UserError(f"{path}: view {views[v]}: frame {i} unreadable ({exc})") from None
+                frame[v] = resize_frame(image, size)
             data[i] = frame
 
 
 class FrameCache:
-    """Frames of HDF5 trajectories at `size` px under `folder` (`<root>/.frame_cache`)."""
+    """Frames of trajectories (HDF5 files, raw episode folders) at `size` px under `folder` (`<root>/.frame_cache`)."""
 
     def __init__(self, folder: Path, size: int) -> None:
         self.folder, self.size = Path(folder), size
@@ -112,6 +142,16 @@ class FrameCache:
         self._write(self.folder / INDEX, lambda path: path.write_text(text))
 
     def digest(self, path: Path) -> str:
+        """A trajectory's content: an HDF5 file's SHA-1, or for a raw episode folder the SHA-1 of its videos' names
+        and SHA-1s (its frames' only source)."""
+        path = Path(path)
+        if not path.is_dir():
+            return self._file_digest(path)
+        videos = [file for name in (VIDEO_FILES[view] for view in VIEW_NAMES) if (file := episode_file(path, name)).is_file()]
+        listing = "".join(f"{file.name} {self._file_digest(file)}\n" for file in videos)
+        return hashlib.sha1(listing.encode()).hexdigest()
+
+    def _file_digest(self, path: Path) -> str:
         """The file's SHA-1, from the index when its size and modification time are unchanged."""
         stat = Path(path).stat()
         key = str(Path(path).resolve())
@@ -124,7 +164,7 @@ class FrameCache:
         return digest
 
     def entry(self, path: Path, views: tuple[str, ...]) -> Path:
-        """The cache file of a trajectory's `views`, built now when missing."""
+        """The cache file of a trajectory's `views` (an HDF5 file or a raw episode folder), built now when missing."""
         path = Path(path)
         if path in self._paths:
             return self._paths[path]
@@ -159,6 +199,11 @@ class FrameCache:
             self._open[path] = h5py.File(self.entry(path, views), "r")[FRAMES]
         data = self._open[path]
         return np.stack([data[i] for i in frames])  # one read per frame: h5py's list indexing is ~30× slower
+
+    def length(self, path: Path, views: tuple[str, ...]) -> int:
+        """How many frames the trajectory's entry holds (a raw episode's: those its videos decode)."""
+        with h5py.File(self.entry(path, views), "r") as entry:
+            return len(entry[FRAMES])
 
     def __getstate__(self) -> dict:
         """Worker processes get the entry names, not the parent's open handles."""

@@ -66,7 +66,7 @@ def _schedule(optimizer, config: TrainConfig):
 
 def _files(data: Path, split_file: Path | None, key: str) -> list[Path]:
     files = read_split(split_file or Path(data) / SPLIT_FILE)[key]
-    missing = [f for f in files if not f.is_file()]
+    missing = [f for f in files if not f.exists()]
     if missing:
         raise UserError(f"{missing[0]}: listed in the split but not found ({len(missing)} missing)")
     return files

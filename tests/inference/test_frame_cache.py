@@ -18,7 +18,7 @@ import torch
 from touchanything.core.errors import UserError
 from touchanything.inference.model.preprocess import resize_frame
 from touchanything.inference.training import frame_cache as frame_cache_module
-from touchanything.inference.training.clip_dataset import ClipDataset, clip_loader
+from touchanything.inference.training.clip_dataset import ClipDataset, clip_loader, load_episode
 from touchanything.inference.training.frame_cache import BUILD_LOCK, CACHE_DIR, FrameCache, write_entry
 
 
@@ -88,7 +88,7 @@ def test_an_interrupted_build_leaves_no_entry_and_no_temporary_file(root, monkey
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(frame_cache_module, "resize_frame", full_disk)
-    with pytest.raises(UserError, match="frame 0 unreadable"):
+    with pytest.raises(OSError, match="No space left"):
         cache.entry(trajectories(root)[0], ("ego",))
     leftovers = [p.name for p in (root / CACHE_DIR).iterdir() if p.name not in ("index.json", BUILD_LOCK)]
     assert leftovers == []
@@ -167,3 +167,73 @@ def test_entries_are_compressed_and_read_the_same_in_a_forked_child(root):
     os.close(writer)
     os.waitpid(pid, 0)
     assert os.read(reader, 16) == b"same"
+
+
+@pytest.fixture
+def raw_root(sim_raw_root, tmp_path) -> Path:
+    copy = tmp_path / "raw"
+    shutil.copytree(sim_raw_root, copy)
+    return copy
+
+
+def raw_twins(raw_root: Path, h5_root: Path) -> tuple[list[Path], list[Path]]:
+    """The raw episode folders and the HDF5 files `convert` made of them, in the same order."""
+    files = trajectories(h5_root)
+    return [raw_root / f.relative_to(h5_root).with_suffix("") for f in files], files
+
+
+def test_raw_episode_folders_train_on_the_clips_of_their_converted_files(raw_root, root):
+    """Data too large to keep as HDF5 train from their raw folders: every item (frames, poses, target, mask) equals
+    the one of the HDF5 file `convert` made of the folder."""
+    folders, files = raw_twins(raw_root, root)
+    from_raw = ClipDataset(folders, 56, cache=FrameCache.beside(root, 56))
+    from_h5 = ClipDataset(files, 56, cache=FrameCache.beside(root, 56))
+    assert len(from_raw) == len(from_h5) > 0
+    for index in range(len(from_raw)):
+        a, b = from_raw[index], from_h5[index]
+        assert a["views"].keys() == b["views"].keys() == {"ego", "wrist_left", "wrist_right"}
+        assert all(torch.equal(a["views"][v], b["views"][v]) for v in a["views"])
+        for key in ("poses", "target", "mask", "frames"):
+            assert torch.equal(a[key], b[key]), key
+    assert [e.normalized for e in from_raw.episodes] == [e.normalized for e in from_h5.episodes]
+
+
+def test_a_raw_folder_is_keyed_by_its_videos(raw_root, root):
+    folders, _ = raw_twins(raw_root, root)
+    cache = FrameCache.beside(root, 56)
+    first = cache.digest(folders[0])
+    moved = raw_root / "elsewhere"
+    shutil.copytree(folders[0], moved)
+    (moved / "wilor_hands.json").write_text("[]")  # not a source of its frames
+    assert FrameCache.beside(root, 56).digest(moved) == first
+    with open(moved / "left.mp4", "ab") as video:
+        video.write(b"\0")
+    assert FrameCache.beside(root, 56).digest(moved) != first
+
+
+def test_a_raw_folder_without_the_cache_or_a_video_is_one_line(raw_root, root):
+    folders, _ = raw_twins(raw_root, root)
+    with pytest.raises(UserError, match="a raw episode folder trains from the frame cache, and there is none"):
+        ClipDataset(folders[:1], 56)
+    assert len(ClipDataset(folders[:1], 56, blank=True)) > 0  # the pose-only baseline reads no frame
+    (folders[0] / "right.mp4").write_bytes(b"not a video")  # trained without that view, as an HDF5 file without it
+    assert ClipDataset(folders[:1], 56, cache=FrameCache.beside(root, 56))[0]["views"].keys() == {"ego", "wrist_left"}
+    with pytest.raises(UserError, match=r"no readable right\.mp4; cannot train on its frames"):
+        FrameCache.beside(root, 56).entry(folders[0], ("ego", "wrist_left", "wrist_right"))
+
+
+def test_a_raw_video_cut_short_cuts_the_trajectory_where_it_stops_decoding(raw_root, root):
+    """A video that declares more frames than it decodes (a copy cut short): the trajectory ends at the last frame
+    every view decodes, as `convert` cuts it, poses and pressure with it."""
+    from touchanything.devices.episodes.video_io import VideoReader
+
+    folder = raw_twins(raw_root, root)[0][0]
+    chest = folder / "chest.mp4"
+    with open(chest, "r+b") as video:
+        video.truncate(chest.stat().st_size // 2)
+    reader = VideoReader(chest)
+    decoded = next(i for i in range(reader.num_frames + 1) if reader.read(i) is None)
+    reader.close()
+    assert 0 < decoded < load_episode(folder, "wilor").poses.shape[0]
+    episode = ClipDataset([folder], 56, cache=FrameCache.beside(root, 56)).episodes[0]
+    assert episode.poses.shape[0] == episode.pressure.shape[0] == decoded

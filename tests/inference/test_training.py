@@ -281,3 +281,15 @@ def test_ddp_with_two_cpu_processes(data, tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert (tmp_path / "ddp" / "last.pth").is_file() and "best validation loss" in proc.stdout
     load_model(tmp_path / "ddp" / "last.pth")
+
+
+def test_a_split_of_raw_episode_folders_trains_from_the_frame_cache(data, sim_raw_root, tmp_path):
+    """Data kept as raw episodes (too large as HDF5) train beside HDF5 ones: the split lists the folders, whose frames
+    are decoded once into the frame cache of `--data`."""
+    folders = sorted(str(p.parent) for p in sim_raw_root.rglob("chest.mp4"))
+    split = tmp_path / "raw_split.json"
+    val = sorted(str(p) for p in data.rglob("*.hdf5"))[:1]
+    split.write_text(json.dumps({"train": folders, "val": val, "test_seen": [], "test_unseen": []}))
+    result = Trainer(config(epochs=1), data, tmp_path / "run", split, log=lambda _: None).fit()
+    assert np.isfinite(result.train_loss).all() and (tmp_path / "run" / "last.pth").is_file()
+    assert len(list((data / ".frame_cache").glob("*.h5"))) == len(folders) + 1

@@ -56,11 +56,12 @@ def test_the_held_out_set_and_the_first_training_lists_come_before_the_later_dat
     assert read(data / "fresh" / "split.json") == {"train": [], "val": [],
                                                   "test_seen": ["../sim_fresh_h5/f1", "../sim_fresh_h5/f2"],
                                                   "test_unseen": ["../sim_fresh_h5/fu"]}
-    assert "split_train_2x.json waits for sim_more2_h5" in done.stdout
+    assert "split_train_2x.json waits for sim_more2" in done.stdout
 
-    dataset(data, "sim_more2_h5", train=["n1", "n2"], val=["n3"])
+    dataset(data, "sim_more2", train=["S/t/n1.hdf5", "S/t/n2.hdf5"], val=["S/t/n3.hdf5"])  # raw: its folders are listed
     assert run(data).returncode == 0
-    assert len(read(data / "split_train_2x.json")["train"]) == 2 + 3 + 1 + 3
+    assert read(data / "split_train_2x.json")["train"][-4:] == [str(data / "sim_more_h5" / "m1")] + \
+        [str(data / "sim_more2" / "S" / "t" / n) for n in ("n1", "n2", "n3")]
 
 
 def test_a_training_list_that_holds_a_held_out_trajectory_is_refused(tmp_path):
