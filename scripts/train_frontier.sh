@@ -9,9 +9,9 @@
 # Resumable: a stopped run (a session that ends kills it) continues from its last.pth when this script is run again; a
 # finished run (data/runs/RUN/.done) and an evaluation whose results.json exists are skipped, and a run that another
 # instance of this script is training or evaluating is left to it (data/runs/RUN.lock). Two jobs (trainings, the
-# bundled models' evaluations) run side by side, one torch thread each, the next starting as soon as one ends. Run
-# from the repository root once scripts/make_datasets.sh has made the held-out set and the 162 training trajectories
-# (sim240, sim_extra, sim_test): a run whose data is not made yet (~400 trajectories: split_train_more.json; twice
+# bundled models' evaluations) run side by side, one torch thread each, counting those another instance runs, the next
+# starting when one ends. Run from the repository root once scripts/make_datasets.sh has made the held-out set and the
+# 162 training trajectories (sim240, sim_extra, sim_test): a run whose data is not made yet (~400 trajectories: split_train_more.json; twice
 # that: split_train_2x.json) waits, said in one line, and so does the evaluation on the fresh seed; run this script
 # again as scripts/make_datasets.sh makes them. The tables cover the runs trained so far.
 set -euo pipefail
@@ -46,9 +46,13 @@ evaluate() (  # evaluate RUN CHECKPOINT: all views, causal, both splits of the h
   done
 )
 SEEN=data/split_train.json MORE=data/split_train_more.json TWICE=data/split_train_2x.json
+running() {  # trainings and evaluations running on this checkout, this instance's and any other's
+  pgrep -fc -- "$TA (train|eval) " || true
+}
 side_by_side() {  # side_by_side COMMAND...: in the background once fewer than two jobs run
-  while [ "$(jobs -rp | wc -l)" -ge 2 ]; do wait -n || echo "a job stopped with an error: see data/runs/*.train.log"; done
+  while [ "$(running)" -ge 2 ]; do sleep 15; done
   "$@" &
+  sleep 5  # its training or evaluation has started (or it has returned: done, held, waiting) before the next count
 }
 side_by_side train pico_seed1 pico_seed1 $MORE
 side_by_side train pico_96 pico_96 $MORE
@@ -62,7 +66,7 @@ side_by_side train nano nano_more $MORE  # nano at 398 is in docs/findings.md; r
 mkdir -p data/runs/bundled_pico data/runs/bundled_nano
 side_by_side evaluate bundled_pico models/pico/best_model.pth
 side_by_side evaluate bundled_nano models/nano/best_model.pth
-wait
+for job in $(jobs -p); do wait "$job" || echo "a job stopped with an error: see data/runs/*.train.log"; done
 trained=()
 for run in pico_162 pico_2x nano_more nano_2x pico_96 pico_128 pico_seed1 pico_seed2 pico_seed3; do
   [ -f "data/runs/$run/.done" ] || continue  # not trained yet: a half-trained best_model.pth is never evaluated
