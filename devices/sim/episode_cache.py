@@ -6,8 +6,9 @@ An episode is a pure function of its `EpisodeSpec` (scene, length, seed, unseen 
 seed is the same whatever the number of episodes) and of the code that makes and writes it, so the key is the
 spec and the digest is the SHA-256 of the sources of the devices layer and of `core` below it: a
 change there never serves an episode that code would now make differently. Each entry holds the episode's
-folder (its files copied with their metadata) and its statistics (`stats.pkl`), written under a temporary name
-and renamed, so a killed writer leaves no entry that looks complete.
+folder (its files copied with their metadata) and its statistics (`stats.pkl`), written under a marked temporary
+name (`core.temporary_files`) and renamed, so a killed writer leaves no entry that looks complete, and what it left
+is removed by the next store into that folder.
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ import pickle
 import shutil
 from pathlib import Path
 
+from touchanything.core.temporary_files import mark, remove_left_behind, unmark
 from touchanything.devices.sim.episode_generator import EpisodeSpec
 from touchanything.devices.sim.episode_stats import EpisodeStats
 
@@ -70,14 +72,22 @@ def _copy_files(source: Path, target: Path) -> None:
 
 def store(spec: EpisodeSpec, stats: EpisodeStats, root: Path) -> None:
     """Copy the episode just written under `root` into the cache with its statistics (folder kept relative to
-    `root`); a cache that cannot be written is skipped (the episode is already where it belongs)."""
+    `root`); a cache that cannot be written is skipped (the episode is already where it belongs). What a writer killed
+    mid-copy left in that folder is removed first (named on stderr)."""
     entry = entry_for(spec)
     partial = entry.with_name(f".{entry.name}.partial-{os.getpid()}")
     try:
-        shutil.rmtree(partial, ignore_errors=True)
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        remove_left_behind(entry.parent)
+        mark(partial, "folder")
+    except OSError:
+        return
+    try:
         _copy_files(Path(stats.folder), partial / EPISODE_DIR)
         relative = dataclasses.replace(stats, folder=Path(stats.folder).relative_to(root))
         (partial / STATS_FILE).write_bytes(pickle.dumps(relative))
         partial.rename(entry)
     except OSError:
         shutil.rmtree(partial, ignore_errors=True)
+    finally:
+        unmark(partial)

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 from touchanything.app.cli import main
@@ -47,3 +49,23 @@ def test_a_broken_cache_entry_is_simulated_again(tmp_path, monkeypatch, capsys):
     (entry_for(spec) / "stats.pkl").write_bytes(b"not a pickle")
     assert "copied" not in simulate(tmp_path / "b", 1, capsys)
     assert digests(tmp_path / "a") == digests(tmp_path / "b")
+
+
+def test_what_a_killed_store_left_in_the_cache_is_removed(tmp_path, monkeypatch, capsys):
+    """A worker killed while copying an episode into the cache leaves its marked temporary folder; the next store
+    into that folder removes it, and says so. A look-alike without the project's marker stays."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    specs = episode_specs(SimulationConfig(episodes=2, seconds=1.0, seed=21))
+    folder = entry_for(specs[0]).parent
+    folder.mkdir(parents=True)
+    left = folder / f".{entry_for(specs[0]).name}.partial-1"
+    code = ("import sys; from pathlib import Path; from touchanything.core.temporary_files import mark; "
+            "p = Path(sys.argv[1]); mark(p, 'folder'); (p / 'episode').mkdir(parents=True)")
+    subprocess.run([sys.executable, "-c", code, str(left)], check=True)  # its process has ended: a killed writer's
+    users = folder / ".notes.partial-1"
+    users.mkdir()
+    assert main(["simulate", str(tmp_path / "a"), "--episodes", "2", "--seconds", "1", "--seed", "21"]) == 0
+    assert f"removed {left}: left half-written by an interrupted run" in capsys.readouterr().err
+    assert not left.exists() and not Path(f"{left}.owner").exists() and users.is_dir()
+    assert [entry_for(s).is_dir() for s in specs] == [True, True]
+    assert sorted(p.name for p in folder.iterdir()) == sorted([".notes.partial-1", *(entry_for(s).name for s in specs)])
