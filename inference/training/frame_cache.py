@@ -17,7 +17,7 @@ views: 3.4 MB at 64 px), a clip of 8 frames read in about 1 ms.
 - **Atomic:** an entry is written under a temporary name and renamed when complete; an interrupted build
   leaves no entry (its temporary file is removed, or replaced by the next build).
 - **Built once:** an entry is built under the folder's lock (`.build.lock`), so two trainings side by side on one
-  dataset decode each trajectory once, the second waiting for the first's entry.
+  dataset decode each trajectory once, the second waiting for the first's entry (said once on stderr).
 - **Per process:** entries are opened on first use in each process; a forked DataLoader worker opens its own
   and never reads through a handle it inherited.
 """
@@ -28,12 +28,14 @@ import fcntl
 import hashlib
 import json
 import os
+import sys
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import h5py
 import numpy as np
+from tqdm import tqdm
 
 from touchanything.core.errors import UserError
 from touchanything.core.snapshot import VIEW_NAMES
@@ -106,6 +108,7 @@ class FrameCache:
         self._open: dict[Path, h5py.Dataset] = {}
         self._pid = os.getpid()
         self.built = self.reused = 0
+        self._said_waiting = False
 
     @classmethod
     def beside(cls, root: Path, size: int) -> FrameCache:
@@ -187,7 +190,14 @@ class FrameCache:
         """Hold the folder's build lock: two trainings side by side on one dataset decode each trajectory once, the
         second waiting for the first's entry instead of decoding it again (released when the process ends)."""
         with open(self.folder / BUILD_LOCK, "a") as lock:
-            fcntl.flock(lock, fcntl.LOCK_EX)
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                if not self._said_waiting:
+                    self._said_waiting = True
+                    tqdm.write(f"frame cache {self.folder}: another run is building entries; waiting for them "
+                               "(reused, not decoded again)", file=sys.stderr)
+                fcntl.flock(lock, fcntl.LOCK_EX)
             yield
 
     def clip(self, path: Path, views: tuple[str, ...], frames: np.ndarray) -> np.ndarray:

@@ -136,13 +136,15 @@ def test_a_second_training_waits_for_the_entry_the_first_is_building(root):
             f"cache.entry(Path(sys.argv[2]), {views!r}); print(cache.built, cache.reused)")
     with open(folder / BUILD_LOCK, "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # the first training, building this entry
-        child = subprocess.Popen([sys.executable, "-c", code, str(root), str(file)], stdout=subprocess.PIPE, text=True)
+        child = subprocess.Popen([sys.executable, "-c", code, str(root), str(file)], stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True)
         assert child.stdout.readline() == "ready\n"
         time.sleep(1.0)  # the second training reaches the entry
         name = f"{FrameCache(folder, 56).digest(file)}.{'-'.join(views)}.56px.h5"
         write_entry(file, views, 56, folder / name)
-    out, _ = child.communicate(timeout=60)
+    out, err = child.communicate(timeout=60)
     assert out.split() == ["0", "1"]  # built none, reused the first one's
+    assert err.count("another run is building entries; waiting for them") == 1
 
 
 def test_entries_are_compressed_and_read_the_same_in_a_forked_child(root):
