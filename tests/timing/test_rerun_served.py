@@ -4,6 +4,7 @@ says so ("0 dropped"); when the server's memory limit makes it drop its oldest r
 as many as a late viewer misses, by kind."""
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -48,7 +49,8 @@ def _rows(path: Path) -> Counter[str]:
 def _follow(data_url: str, out: Path, timeout: float = 60.0) -> None:
     """Rerun's own client follows `data_url` into `out` until what it saved has not grown for two seconds, and is
     then stopped (Ctrl-C) — before the server is: it can only have what the server held while serving."""
-    client = subprocess.Popen([str(RERUN), data_url, "--save", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    client = subprocess.Popen([str(RERUN), data_url, "--save", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              start_new_session=True)  # its group: the wrapper script and the binary it starts
     try:
         deadline, last, since = time.monotonic() + timeout, -1, time.monotonic()
         while time.monotonic() < deadline and not (last > 0 and time.monotonic() - since > 2.0):
@@ -56,12 +58,12 @@ def _follow(data_url: str, out: Path, timeout: float = 60.0) -> None:
             size = out.stat().st_size if out.exists() else 0
             if size != last:
                 last, since = size, time.monotonic()
-        client.send_signal(signal.SIGINT)
+        os.killpg(client.pid, signal.SIGINT)
         client.wait(30)
-    finally:
-        if client.poll() is None:
-            client.kill()
-            client.wait()
+    finally:  # never leave the binary behind (orphaned, it kept the client's port 9876 and failed the next test)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(client.pid, signal.SIGKILL)
+        client.wait()
 
 
 def test_a_served_replay_holds_every_row_of_the_file(tmp_path):
