@@ -86,8 +86,7 @@ class EngineSession:
         frame, delivered late) is dropped until that frame comes, so that it never counts in the new metrics."""
         self._snapshot: Snapshot | None = None
         self._prediction: PredictionRecord | None = None
-        """The newest prediction (None after a restart, until the engine predicts again), the measured pressure of
-        its frame and their facts."""
+        """The newest prediction (None after a restart, until the engine predicts again), its frame's truth, facts."""
         self._shown = PublishedRecord(self._lock)
         """What the dashboard shows: (snapshot, prediction record) as last published (see the module)."""
         self._engine = engine
