@@ -81,14 +81,14 @@ def open_video_episode(path: Path) -> Episode:
 
 
 def _episode_levels(root: Path) -> Iterator[Path]:
-    """Every folder under `root` (itself included) at most 4 levels deep, not looking inside raw episode folders.
-    Symbolic links to folders are followed; a folder's path is where its link stands, and a folder reached twice
-    (two links, or a link loop) is met once."""
+    """Every folder under `root` (itself included) at most 4 levels deep, not looking inside raw episode folders
+    nor hidden folders (a cache such as `.frame_cache`). Symbolic links to folders are followed; a folder's path is
+    where its link stands, and a folder reached twice (two links, or a link loop) is met once."""
     level, seen = [Path(root)], set()
     for _ in range(MAX_DEPTH + 1):
         level = [p for p in level if _first_visit(p, seen)]
         yield from level
-        level = sorted(c for p in level if not is_raw_episode(p) for c in p.iterdir() if c.is_dir())
+        level = sorted(c for p in level if not is_raw_episode(p) for c in p.iterdir() if c.is_dir() and not _hidden(c))
 
 
 def find_raw_episodes(root: Path) -> list[Path]:
@@ -101,20 +101,26 @@ def find_empty_folders(root: Path) -> list[Path]:
     whose files were never written, or lost. Hidden folders are not counted."""
     if not Path(root).is_dir():
         return []
-    return sorted(p for p in _episode_levels(root)
-                  if not p.name.startswith(".") and not any(not c.name.startswith(".") for c in p.iterdir()))
+    return sorted(p for p in _episode_levels(root) if not _hidden(p) and not any(not _hidden(c) for c in p.iterdir()))
 
 
 def find_hdf5_files(root: Path) -> list[Path]:
-    """HDF5 trajectory files under `root`, sorted. Symbolic links to folders are followed (a file's path is
+    """HDF5 trajectory files under `root`, sorted; hidden folders below `root` (a cache such as `.frame_cache`,
+    whose entries are HDF5 too) are not searched. Symbolic links to folders are followed (a file's path is
     where its link stands; a folder reached twice, by two links or a link loop, is read once)."""
     found, seen = [], set()
     for folder, subfolders, files in os.walk(root, followlinks=True):
         if not _first_visit(Path(folder), seen):
             subfolders.clear()
             continue
+        subfolders[:] = [name for name in subfolders if not _hidden(Path(name))]
         found += [Path(folder) / name for name in files if is_hdf5_path(Path(name)) and (Path(folder) / name).is_file()]
     return sorted(found)
+
+
+def _hidden(path: Path) -> bool:
+    """A hidden file or folder: its name starts with a dot."""
+    return path.name.startswith(".")
 
 
 def _first_visit(folder: Path, seen: set[tuple[int, int]]) -> bool:

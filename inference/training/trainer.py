@@ -87,6 +87,7 @@ class Trainer:
         if not train_files:
             raise UserError("the split's train list is empty")
         val_files = _files(data, split_file, "val")
+        self.model = build_model(c).to(self.device)  # before decoding: missing backbone weights are told at once
         frame_cache = None if c.blank_images else self._frame_cache(Path(data), c.image_size)
 
         def dataset(files: list[Path], bar: tqdm) -> ClipDataset:
@@ -107,7 +108,6 @@ class Trainer:
                 f"at {c.image_size} px")
         if len(self.train_set) == 0:
             raise UserError(f"no training clips: every train trajectory is shorter than {SPAN} frames")
-        self.model = build_model(c).to(self.device)
         hands = self.model.set_pose_statistics(np.concatenate([e.poses for e in self.train_set.episodes]))
         if hands and self.rank == 0:
             log(f"pose input: wrist-relative joints and wrist position, standardised over {hands} training hand poses")

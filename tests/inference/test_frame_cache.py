@@ -45,6 +45,18 @@ def test_cached_clips_equal_clips_decoded_from_the_file(root):
             assert torch.equal(a[view], b[view])
 
 
+def test_the_cache_beside_a_dataset_is_not_taken_for_trajectories(root, capsys):
+    from touchanything.app.cli import main
+    from touchanything.devices.episodes.episode_loader import find_empty_folders, find_hdf5_files
+
+    files = trajectories(root)
+    ClipDataset(files, 56, cache=FrameCache.beside(root, 56))
+    assert len(list((root / CACHE_DIR).glob("*.h5"))) == len(files) == 3
+    assert find_hdf5_files(root) == files and find_empty_folders(root) == []
+    assert main(["split", str(root), "--min-frames", "10", "--out", str(root / "again.json"), "--allow-empty"]) == 0
+    assert "train 1, val 1, test_seen 1, test_unseen 0; excluded 0" in capsys.readouterr().out
+
+
 def test_entries_are_reused_by_content_and_rebuilt_when_it_changes(root):
     files = trajectories(root)
     ClipDataset(files, 56, cache=FrameCache.beside(root, 56))

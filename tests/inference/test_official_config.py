@@ -164,3 +164,4 @@ def test_train_reads_the_official_recipe_and_names_missing_backbone_weights(offi
     assert "100 epochs, batch 16, AdamW lr 5e-05 weight decay 0.05 betas (0.9, 0.999), 10 warm-up epochs" in out
     assert "mse 1 + l1 0.5 (×3 above 0.1) + tv 0.01" in out
     assert err.strip().count("\n") == 0 and "dinov2_vitb14_pretrain.pth" in err and "not found" in err
+    assert not (sim_hdf5_root / ".frame_cache").exists()  # refused before any frame was decoded
