@@ -4,7 +4,6 @@ says so ("0 dropped"); when the server's memory limit makes it drop its oldest r
 as many as a late viewer misses, by kind."""
 from __future__ import annotations
 
-import contextlib
 import os
 import re
 import signal
@@ -19,6 +18,7 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
+from helpers.rerun_client import interrupt, rerun_client
 from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.viz.frame_facts import frame_facts
@@ -27,7 +27,6 @@ from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / "recordings" / "sample" / "Workbench" / "hold_and_press_button_box_yellow" / "sim0007_00001"
-RERUN = Path(sys.executable).parent / "rerun"
 pytestmark = pytest.mark.filterwarnings("ignore:RRD file has no footer")  # the client is stopped: it writes none
 
 
@@ -49,21 +48,15 @@ def _rows(path: Path) -> Counter[str]:
 def _follow(data_url: str, out: Path, timeout: float = 60.0) -> None:
     """Rerun's own client follows `data_url` into `out` until what it saved has not grown for two seconds, and is
     then stopped (Ctrl-C) — before the server is: it can only have what the server held while serving."""
-    client = subprocess.Popen([str(RERUN), data_url, "--save", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                              start_new_session=True)  # its group: the wrapper script and the binary it starts
-    try:
+    with rerun_client(data_url, out) as client:
         deadline, last, since = time.monotonic() + timeout, -1, time.monotonic()
         while time.monotonic() < deadline and not (last > 0 and time.monotonic() - since > 2.0):
             time.sleep(0.25)
             size = out.stat().st_size if out.exists() else 0
             if size != last:
                 last, since = size, time.monotonic()
-        os.killpg(client.pid, signal.SIGINT)
+        interrupt(client)
         client.wait(30)
-    finally:  # never leave the binary behind (orphaned, it kept the client's port 9876 and failed the next test)
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(client.pid, signal.SIGKILL)
-        client.wait()
 
 
 def test_a_served_replay_holds_every_row_of_the_file(tmp_path):

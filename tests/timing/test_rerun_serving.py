@@ -10,11 +10,11 @@ import subprocess
 import sys
 import time
 import urllib.request
-from pathlib import Path
 
 import pytest
 from rerun.chunk import RrdReader
 
+from helpers.rerun_client import rerun_client
 from helpers.rerun_reading import recording_rows
 from touchanything.app.cli import main
 
@@ -38,7 +38,6 @@ def test_serving_the_recording_to_the_web_viewer(episode_dir, tmp_path):
     stderr = (tmp_path / "stderr.txt").open("w")
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=stderr, text=True, env=headless,
                                preexec_fn=_default_sigint)
-    client = None
     try:
         lines = []
         deadline = time.monotonic() + 300
@@ -55,22 +54,19 @@ def test_serving_the_recording_to_the_web_viewer(episode_dir, tmp_path):
         assert ("0.0.0.0", port) in listening  # Rerun's web server takes no address: the page (no data) everywhere
         with urllib.request.urlopen(f"http://localhost:{port}/", timeout=10) as page:
             assert page.status == 200 and b"<html" in page.read(4096).lower()
-        client = subprocess.Popen([str(Path(sys.executable).parent / "rerun"), data, "--save", str(tmp_path / "got.rrd")],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        time.sleep(4)  # the client takes what the server holds
-        process.send_signal(signal.SIGINT)
-        try:
-            assert process.wait(30) == 0
-        except subprocess.TimeoutExpired:
-            stderr.flush()
-            pytest.fail(f"replay did not stop within 30 s of SIGINT; its stderr: {(tmp_path / 'stderr.txt').read_text()[-2000:]}")
-        assert "stopped serving" in process.stdout.read()
-        client.wait(30)  # the server went away: the client saves what it received and ends
+        with rerun_client(data, tmp_path / "got.rrd") as client:
+            time.sleep(4)  # the client takes what the server holds
+            process.send_signal(signal.SIGINT)
+            try:
+                assert process.wait(30) == 0
+            except subprocess.TimeoutExpired:
+                stderr.flush()
+                pytest.fail(f"replay did not stop within 30 s of SIGINT; its stderr: {(tmp_path / 'stderr.txt').read_text()[-2000:]}")
+            assert "stopped serving" in process.stdout.read()
+            client.wait(30)  # the server went away: the client saves what it received and ends
     finally:
-        for child in (process, client):
-            if child is not None:
-                child.kill()
-                child.wait()
+        process.kill()
+        process.wait()
         stderr.close()
     assert len(RrdReader(tmp_path / "s.rrd").recordings()) == 1
     rows, static = recording_rows(tmp_path / "got.rrd")  # what followed the printed address received
