@@ -308,7 +308,8 @@ def atlas_switch_run(atlas: Path) -> dict:
                 seen["nano"] = dashboard.atlas.ring
                 session.set_model("baseline_pose", "onnx-int8")
                 wait_for(lambda: session.state().setting == "baseline_pose/onnx-int8/all" and dashboard.atlas.ring is not None
-                         and dashboard.atlas.ring != seen["nano"], "the ring of baseline_pose")
+                         and dashboard.atlas.ring != seen["nano"], "the ring of baseline_pose",
+                         seconds=240)  # a clean checkout exports the ONNX graph first, at low priority
                 seen["baseline_pose"] = dashboard.atlas.ring
                 session.set_rate(2)
                 wait_for(lambda: session.state().setting == "baseline_pose/onnx-int8/all/every2", "predicting every 2nd frame")
