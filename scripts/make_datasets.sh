@@ -3,11 +3,12 @@
 # from fixed simulator seeds, so the same files come out on every machine:
 #   data/sim240_h5     240 episodes, seed 11: training (its train list), validation (val), held out (test_seen, test_unseen)
 #   data/sim_extra_h5   24 episodes, seed 12: training (its train, val and test_seen lists)
-#   data/sim_more_h5   300 episodes, seed 14: more training (its train, val and test_seen lists; never its
-#                      test_unseen, whose objects are the held-out ones)
+#   data/sim_more      300 episodes, seed 14: more training (its train, val and test_seen lists; never its
+#                      test_unseen, whose objects are the held-out ones), kept raw like sim_more2
 #   data/sim_test_h5    60 episodes, seed 13: held out only, never trained on
 #   data/sim_more2     520 episodes, seed 15: the data axis of the frontier (its train, val and test_seen lists),
-#                      kept raw: training decodes their frames into its frame cache (3.4 MB per episode at 64 px)
+#                      kept raw: training decodes their frames into its frame cache (3.4 MB per episode at 64 px;
+#                      its clips equal those of the HDF5 file `convert` would make)
 #   data/sim_fresh_h5   48 episodes, seed 16: a second fresh seed, held out only (the frontier's confirmation)
 # and the split files that say which is which (scripts/write_splits.py, run after each dataset: a split file is
 # written as soon as its datasets exist, so the held-out set and the ~400 training trajectories are there before
@@ -18,14 +19,15 @@
 # A step whose output is there is skipped. Run from the repository root after `make test` (or any command that
 # created .venv); about 4 h on the 2-core CPU machine (simulation ~20 frames/s with --workers 2) (docs/performance.md, "Simulation").
 # The HDF5 files take about 93 MB per 10 s episode (the raw episodes 3 MB): all six datasets would need about 110 GB,
-# more than the ~100 GB this machine's disk holds beside the frame caches, so sim_more2 (49 GB as HDF5) stays raw, and
-# a conversion that the free space cannot hold stops the script before it starts, said in one line.
+# more than the ~100 GB this machine's disk holds beside the frame caches, so the two training-only datasets stay raw
+# (sim_more 28 GB and sim_more2 49 GB as HDF5), and a conversion that the free space cannot hold stops the script
+# before it starts, said in one line.
 set -euo pipefail
 TA=.venv/bin/touchanything
 # The episodes simulated so far live beside the datasets (devices/sim/episode_cache.py): a run stopped halfway —
 # a session that ends — and run again on this checkout copies them instead of simulating them again.
 export XDG_CACHE_HOME="$PWD/data/.cache"
-H5_MB_PER_EPISODE=93  # a 10 s episode's HDF5 at gzip level 1 (sim_more_h5: 27.8 GB for 300)
+H5_MB_PER_EPISODE=93  # a 10 s episode's HDF5 at gzip level 1 (300 episodes: 27.8 GB)
 enough_disk() {  # enough_disk NAME EPISODES: stop, saying so, before a conversion the disk cannot hold (2 GB spare)
   local need=$(( $2 * H5_MB_PER_EPISODE / 1024 + 2 )) free
   free=$(df --output=avail -BG data | tail -1 | tr -dc 0-9)
@@ -42,6 +44,6 @@ simulate() {  # simulate NAME EPISODES SEED [raw], then (unless raw) convert, an
 simulate sim240 240 11
 simulate sim_extra 24 12
 simulate sim_test 60 13
-simulate sim_more 300 14
+simulate sim_more 300 14 raw
 simulate sim_fresh 48 16
 simulate sim_more2 520 15 raw

@@ -8,10 +8,10 @@ while the later ones are still being simulated:
     data/heldout/split.json     THE HELD-OUT SET of the atlas: sim240's test_seen and every other test_unseen
                                 trajectory, plus every seed-13 episode, seen and unseen objects kept apart (108)
         — these four once sim240_h5, sim_extra_h5 and sim_test_h5 exist;
-    data/split_train_more.json  split_train.json plus sim_more's seen episodes (about 400) — once sim_more_h5 exists;
-    data/split_train_2x.json    split_train_more.json plus sim_more2's seen episodes (about 800) — once sim_more2 exists:
-                                its raw episode folders (kept raw, too large as HDF5; `train` decodes their frames
-                                into its frame cache);
+    data/split_train_more.json  split_train.json plus sim_more's seen episodes (about 400) — once sim_more exists;
+    data/split_train_2x.json    split_train_more.json plus sim_more2's seen episodes (about 800) — once sim_more2 exists
+        — these two list raw episode folders for sim_more and sim_more2 (kept raw, too large as HDF5; `train`
+        decodes their frames into its frame cache);
     data/fresh/split.json       the seed-16 episodes, seen and unseen objects apart (never trained on) — once sim_fresh_h5 exists.
 
     python scripts/write_splits.py [--data data]
@@ -59,7 +59,7 @@ def write_splits(data: Path) -> tuple[list[str], list[str]]:
     """Write every split file whose datasets exist under `data`; (what was written, what waits and for what)."""
     data = data.resolve()
     main, extra, test = read(data, "sim240_h5"), read(data, "sim_extra_h5"), read(data, "sim_test_h5")
-    more, more2, fresh = read(data, "sim_more_h5"), read(data, "sim_more2", raw=True), read(data, "sim_fresh_h5")
+    more, more2, fresh = read(data, "sim_more", raw=True), read(data, "sim_more2", raw=True), read(data, "sim_fresh_h5")
     written: list[str] = []
     waiting: list[str] = []
     if fresh is None:
@@ -78,7 +78,7 @@ def write_splits(data: Path) -> tuple[list[str], list[str]]:
     held_out = {p for paths in held.values() for p in paths}
     trained = [("split_train.json", split)]
     if more is None:
-        waiting.append("data/split_train_more.json and data/split_train_2x.json wait for sim_more_h5")
+        waiting.append("data/split_train_more.json and data/split_train_2x.json wait for sim_more")
     else:
         bigger = dict(split, train=split["train"] + seen(more))
         trained.append(("split_train_more.json", bigger))
