@@ -14,8 +14,9 @@ views: 3.4 MB at 64 px), a clip of 8 frames read in about 1 ms.
   changed trajectory gets a new entry and an unchanged one (copied, renamed, converted again to the same bytes)
   reuses its entry. Digests are remembered in `index.json` by path, size and modification time (as git does),
   so a later run hashes only files whose size or time changed.
-- **Atomic:** an entry is written under a temporary name and renamed when complete; an interrupted build
-  leaves no entry (its temporary file is removed, or replaced by the next build).
+- **Atomic:** an entry is written under a marked temporary name (`core.temporary_files`) and renamed when
+  complete; an interrupted build leaves no entry: its temporary file is removed at once, or, when the process was
+  killed, by the next run that opens the cache (named on stderr).
 - **Built once:** an entry is built under the folder's lock (`.build.lock`), so two trainings side by side on one
   dataset decode each trajectory once, the second waiting for the first's entry (said once on stderr).
 - **Per process:** entries are opened on first use in each process; a forked DataLoader worker opens its own
@@ -39,6 +40,7 @@ from tqdm import tqdm
 
 from touchanything.core.errors import UserError
 from touchanything.core.snapshot import VIEW_NAMES
+from touchanything.core.temporary_files import mark, remove_left_behind, temporary_path, unmark
 from touchanything.devices.episodes.hdf5_episode import IMAGE_KEYS
 from touchanything.devices.episodes.raw_episode import VIDEO_FILES, episode_file, open_raw_episode
 from touchanything.inference.model.preprocess import resize_frame
@@ -120,6 +122,7 @@ class FrameCache:
                 pass
         except OSError as exc:
             raise UserError(f"{folder}: cannot write the frame cache ({exc.strerror})") from None
+        remove_left_behind(folder)
         return cls(folder, size)
 
     def _read_index(self) -> dict:
@@ -130,15 +133,18 @@ class FrameCache:
             return {}
 
     def _write(self, target: Path, write) -> None:
-        """`write(path)` creates a temporary file beside `target`, renamed to it when complete (removed on error)."""
-        with tempfile.NamedTemporaryFile(dir=self.folder, delete=False, suffix=".tmp") as handle:
-            temporary = Path(handle.name)
+        """`write(path)` creates a marked temporary file beside `target`, renamed to it when complete (removed on
+        error)."""
+        temporary = temporary_path(target)
+        mark(temporary, "file")
         try:
             write(temporary)
         except BaseException:
             temporary.unlink(missing_ok=True)
+            unmark(temporary)
             raise
         os.replace(temporary, target)
+        unmark(temporary)
 
     def _write_index(self) -> None:
         text = json.dumps(self._index, indent=1, sort_keys=True)

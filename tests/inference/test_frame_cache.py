@@ -5,6 +5,7 @@ from __future__ import annotations
 import fcntl
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -104,6 +105,31 @@ def test_an_interrupted_build_leaves_no_entry_and_no_temporary_file(root, monkey
         cache.entry(trajectories(root)[0], ("ego",))
     leftovers = [p.name for p in (root / CACHE_DIR).iterdir() if p.name not in ("index.json", BUILD_LOCK)]
     assert leftovers == []
+
+
+def test_what_a_killed_build_left_is_removed_by_the_next_run(root, capsys):
+    """A training killed (SIGKILL) while it writes an entry leaves the entry's marked temporary file; the next run
+    that opens the cache removes it, and says so. A look-alike without the project's marker stays."""
+    path = trajectories(root)[0]
+    code = ("import os, signal, sys; from pathlib import Path\n"
+            "from touchanything.inference.training import frame_cache as m\n"
+            "calls = []\n"
+            "def killed(image, size):\n"
+            "    calls.append(size)\n"
+            "    if len(calls) == 3: os.kill(os.getpid(), signal.SIGKILL)\n"
+            "    return original(image, size)\n"
+            "original, m.resize_frame = m.resize_frame, killed\n"
+            "m.FrameCache.beside(Path(sys.argv[1]), 56).entry(Path(sys.argv[2]), ('ego',))\n")
+    killed = subprocess.run([sys.executable, "-c", code, str(root), str(path)])
+    assert killed.returncode == -signal.SIGKILL
+    left = [p for p in (root / CACHE_DIR).iterdir() if ".partial-" in p.name and not p.name.endswith(".owner")]
+    assert len(left) == 1 and Path(f"{left[0]}.owner").is_file()
+    users = root / CACHE_DIR / ".notes.partial-1"
+    users.write_text("not the project's")
+    cache = FrameCache.beside(root, 56)
+    assert f"removed {left[0]}: left half-written by an interrupted run" in capsys.readouterr().err
+    assert not left[0].exists() and not Path(f"{left[0]}.owner").exists() and users.is_file()
+    assert cache.clip(path, ("ego",), np.array([0])).shape == (1, 1, 56, 56, 3) and cache.built == 1
 
 
 def test_a_folder_that_cannot_be_written_is_one_line(root):
