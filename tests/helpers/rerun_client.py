@@ -18,7 +18,8 @@ from pathlib import Path
 RERUN = Path(sys.executable).parent / "rerun"
 
 
-def _free_port() -> int:
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 the OS has just given out (free a moment ago)."""
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         return probe.getsockname()[1]
@@ -28,7 +29,7 @@ def _free_port() -> int:
 def rerun_client(data_url: str, out: Path) -> Iterator[subprocess.Popen]:
     """The client saving what `data_url` serves into `out`, running for the `with` block; on leaving, its whole
     process group is killed (whatever it did: the caller waits for a clean end inside the block)."""
-    client = subprocess.Popen([str(RERUN), data_url, "--save", str(out), "--port", str(_free_port())],
+    client = subprocess.Popen([str(RERUN), data_url, "--save", str(out), "--port", str(free_port())],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
         yield client

@@ -7,7 +7,6 @@ from __future__ import annotations
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -18,7 +17,7 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from helpers.rerun_client import interrupt, rerun_client
+from helpers.rerun_client import free_port, interrupt, rerun_client
 from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.viz.frame_facts import frame_facts
@@ -28,12 +27,6 @@ from touchanything.viz.rerun_recording import RerunRecording, RerunTarget
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / "recordings" / "sample" / "Workbench" / "hold_and_press_button_box_yellow" / "sim0007_00001"
 pytestmark = pytest.mark.filterwarnings("ignore:RRD file has no footer")  # the client is stopped: it writes none
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _rows(path: Path) -> Counter[str]:
@@ -62,7 +55,7 @@ def _follow(data_url: str, out: Path, timeout: float = 60.0) -> None:
 def test_a_served_replay_holds_every_row_of_the_file(tmp_path):
     """The replay of a bundled episode, written and served at once; the client follows it while it is still served."""
     command = [sys.executable, "-m", "touchanything.app.cli", "replay", str(SAMPLE), "--rerun", str(tmp_path / "file.rrd"),
-               "--rerun-serve", str(_free_port())]
+               "--rerun-serve", str(free_port())]
     headless = {k: v for k, v in os.environ.items() if k != "DISPLAY"}  # the recording only: no dashboard, no video
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=headless,
                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
@@ -92,7 +85,7 @@ def test_what_the_data_server_drops_is_counted_by_kind(tmp_path):
         joints, valid = episode.wilor.joints.reshape(-1, 42, 3), episode.wilor.valid
     measured = np.zeros((2, 21, 21), np.float32)
     facts = frame_facts(measured, None, measured, TactileLayout.default().bend)
-    target = RerunTarget(tmp_path / "file.rrd", serve_port=_free_port(), server_memory_limit=2 << 20)
+    target = RerunTarget(tmp_path / "file.rrd", serve_port=free_port(), server_memory_limit=2 << 20)
     recording = RerunRecording(target, "small server", {})
     try:
         for frame in range(150):

@@ -14,15 +14,9 @@ import urllib.request
 import pytest
 from rerun.chunk import RrdReader
 
-from helpers.rerun_client import rerun_client
+from helpers.rerun_client import free_port, rerun_client
 from helpers.rerun_reading import recording_rows
 from touchanything.app.cli import main
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def test_serving_the_recording_to_the_web_viewer(episode_dir, tmp_path):
@@ -30,7 +24,7 @@ def test_serving_the_recording_to_the_web_viewer(episode_dir, tmp_path):
     following it receives the cameras and the pressure — and the data server listens on 127.0.0.1 only."""
     import psutil
 
-    port = _free_port()
+    port = free_port()
     command = [sys.executable, "-m", "touchanything.app.cli", "replay", str(episode_dir), "--out", str(tmp_path / "v.mp4"),
                "--rerun-serve", str(port), "--rerun", str(tmp_path / "s.rrd")]
     headless = {k: v for k, v in os.environ.items() if k != "DISPLAY"}  # as a fresh shell, whatever earlier tests set
@@ -81,7 +75,7 @@ def test_serving_elsewhere_is_asked_for_and_said(capsys, episode_dir, tmp_path):
     assert lan.web_url == "http://192.168.1.20:9090/?url=rerun+http://192.168.1.20:40001/proxy"
     assert "unauthenticated on 192.168.1.20, port 40001" in lan.lines()[1] and lan.lines()[1].startswith("warning")
     assert "every interface" in ServedAt("0.0.0.0", 40001, 9090).lines()[1]
-    base, web = ["replay", str(episode_dir), "--out", str(tmp_path / "v.mp4")], str(_free_port())
+    base, web = ["replay", str(episode_dir), "--out", str(tmp_path / "v.mp4")], str(free_port())
     for extra, message in ((["--rerun-serve-host", "127.0.0.1"], "--rerun-serve-host: only with --rerun-serve"),
                            (["--rerun-serve", web, "--rerun-serve-host", "lab-pc"], "--rerun-serve-host lab-pc: not an IP address"),
                            (["--rerun-serve", web, "--rerun-serve-host", "10.255.255.1"], "10.255.255.1:0 cannot be listened on")):
