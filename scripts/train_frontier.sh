@@ -13,7 +13,7 @@
 # starting when one ends. Run from the repository root once scripts/make_datasets.sh has made the held-out set and the
 # 162 training trajectories (sim240, sim_extra, sim_test): a run whose data is not made yet (~400 trajectories: split_train_more.json; twice
 # that: split_train_2x.json) waits, said in one line, and so does the evaluation on the fresh seed; run this script
-# again as scripts/make_datasets.sh makes them. The tables cover the runs trained so far.
+# again as scripts/make_datasets.sh makes them. The tables and the curves' pictures cover the runs trained so far.
 set -euo pipefail
 TA=.venv/bin/touchanything
 for needed in data/split_train.json data/heldout/split.json; do
@@ -77,4 +77,6 @@ for set in heldout fresh; do
   [ -f "data/$set/split.json" ] || continue
   echo "## data/$set"
   .venv/bin/python scripts/held_out_table.py data/runs bundled_pico "${trained[@]}" --against bundled_pico --set "$set"
+  echo "## data/$set: the three axes (docs/bench/frontier_curves_$set.png)"
+  .venv/bin/python scripts/frontier_curves.py data/runs --set "$set" --plot "docs/bench/frontier_curves_$set.png"
 done
