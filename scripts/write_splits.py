@@ -8,8 +8,8 @@ while the later ones are still being simulated:
     data/heldout/split.json     THE HELD-OUT SET of the atlas: sim240's test_seen and every other test_unseen
                                 trajectory, plus every seed-13 episode, seen and unseen objects kept apart (108)
         — these four once sim240_h5, sim_extra_h5 and sim_test_h5 exist;
-    data/split_train_more.json  split_train.json plus sim_more's seen episodes (about 400) — once sim_more exists;
-    data/split_train_2x.json    split_train_more.json plus sim_more2's seen episodes (about 800) — once sim_more2 exists
+    data/split_train_more.json  split_train.json plus sim_more's seen episodes (398) — once sim_more exists;
+    data/split_train_2x.json    split_train_more.json plus sim_more2's seen episodes (831) — once sim_more2 exists
         — these two list raw episode folders for sim_more and sim_more2 (kept raw, too large as HDF5; `train`
         decodes their frames into its frame cache);
     data/fresh/split.json       the seed-16 episodes, seen and unseen objects apart (never trained on) — once sim_fresh_h5 exists.
