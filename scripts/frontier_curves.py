@@ -50,6 +50,9 @@ def run_point(runs: Path, run: str, held_out: str) -> dict | None:
     except FileNotFoundError:
         print(f"{run}: not evaluated on data/{held_out} yet", file=sys.stderr)
         return None
+    except (ValueError, KeyError, StopIteration) as exc:
+        raise SystemExit(f"{runs / run} or {runs / REFERENCE}: a results.json on data/{held_out} is not eval's "
+                         f"all-views results ({type(exc).__name__}: {exc})") from None
     paths = sorted(reference)
     if sorted(data) != paths:
         raise SystemExit(f"{run} and {REFERENCE} were evaluated on different trajectories of data/{held_out}")
@@ -63,11 +66,15 @@ def ensemble_point(bench: Path, k: int, held_out: str) -> dict | None:
     if not report_path.is_file():
         print(f"K = {k}: {report_path} is missing", file=sys.stderr)
         return None
-    report = json.loads(report_path.read_text())
-    rows = {r["setting"]: r["per_trajectory"] for r in report["rows"] if r.get("per_trajectory")}
     setting = ENSEMBLE_BASE if k == 1 else f"{ENSEMBLE_BASE}/members{k}"
-    splits = [t["split"] for t in report["trajectories"]]
-    return paired(rows[setting], rows[ENSEMBLE_BASE], splits)
+    try:
+        report = json.loads(report_path.read_text())
+        rows = {r["setting"]: r["per_trajectory"] for r in report["rows"] if r.get("per_trajectory")}
+        splits = [t["split"] for t in report["trajectories"]]
+        return paired(rows[setting], rows[ENSEMBLE_BASE], splits)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise SystemExit(f"{report_path}: not a bench report with per-trajectory values of {setting} and "
+                         f"{ENSEMBLE_BASE} ({type(exc).__name__}: {exc})") from None
 
 
 def curves(runs: Path, data: Path, bench: Path, held_out: str) -> dict[str, dict[str, dict]]:
@@ -140,6 +147,10 @@ def main() -> None:
     parser.add_argument("--bench", type=Path, default=Path("docs/bench"), help="the ensemble's bench reports (default docs/bench)")
     parser.add_argument("--plot", type=Path, help="write the picture here (PNG)")
     args = parser.parse_args()
+    if not args.runs.is_dir():
+        parser.error(f"{args.runs} is not a folder of runs")
+    if args.plot and args.plot.suffix.lower() != ".png":
+        parser.error(f"--plot {args.plot}: the picture is a PNG file; name it *.png")
     found = curves(args.runs, args.data, args.bench, args.set)
     print("\n".join(markdown(found)))
     if args.plot:

@@ -52,3 +52,14 @@ def test_each_axis_is_paired_against_the_bundled_pico(tmp_path):
     assert "ensemble_seeds_heldout.json is missing" in done.stderr
     assert "split_train_2x.json is not written yet" in done.stderr
     assert picture.read_bytes().startswith(b"\x89PNG")
+
+
+def test_unreadable_results_and_a_picture_not_named_png_are_refused_in_one_line(tmp_path):
+    (tmp_path / "bundled_pico" / "heldout_test_seen").mkdir(parents=True)
+    (tmp_path / "bundled_pico" / "heldout_test_seen" / "results.json").write_text("{")
+    done = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "--bench", str(tmp_path)], capture_output=True, text=True)
+    assert done.returncode != 0 and "Traceback" not in done.stderr
+    assert "is not eval's all-views results (JSONDecodeError" in done.stderr
+    done = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "--plot", str(tmp_path / "results.json")],
+                          capture_output=True, text=True)
+    assert done.returncode == 2 and "name it *.png" in done.stderr and not (tmp_path / "results.json").exists()
