@@ -23,7 +23,8 @@ from touchanything.inference.evaluation.bootstrap import Resampler
 
 REFERENCE = "bundled_pico"
 TRAINING_DATA = {  # capacity: {split file (its train list's length is the x): run}
-    "pico": {"split_train.json": "pico_162", "split_train_more.json": REFERENCE, "split_train_2x.json": "pico_2x"},
+    "pico": {"split_train.json": "pico_162", "split_train_more.json": REFERENCE, "split_train_2x.json": "pico_2x",
+             "split_train_3x.json": "pico_3x"},
     "nano": {"split_train.json": "bundled_nano", "split_train_more.json": "nano_more", "split_train_2x.json": "nano_2x"},
 }
 RESOLUTION = {"pico": {64: REFERENCE, 96: "pico_96", 128: "pico_128"}}

@@ -10,14 +10,15 @@
 #                      kept raw: training decodes their frames into its frame cache (3.4 MB per episode at 64 px;
 #                      its clips equal those of the HDF5 file `convert` would make)
 #   data/sim_fresh_h5   48 episodes, seed 16: a second fresh seed, held out only (the frontier's confirmation)
+#   data/sim_more3     520 episodes, seed 17: the data axis's third step (its train, val and test_seen lists), raw
 # and the split files that say which is which (scripts/write_splits.py, run after each dataset: a split file is
 # written as soon as its datasets exist, so the held-out set and the ~400 training trajectories are there before
 # the 520 episodes of sim_more2 are made): split_train.json (162 training trajectories), split_train_more.json
-# (~400), split_train_2x.json (~800), split_eval.json, split_test13.json, fresh/split.json and
+# (~400), split_train_2x.json (~800), split_train_3x.json (~1,260), split_eval.json, split_test13.json, fresh/split.json and
 # heldout/split.json, THE HELD-OUT SET of the atlas (`touchanything bench --data data/heldout`; 108 trajectories:
 # 67 test_seen, 41 test_unseen).
 # A step whose output is there is skipped. Run from the repository root after `make test` (or any command that
-# created .venv); about 4 h on the 2-core CPU machine (simulation ~20 frames/s with --workers 2) (docs/performance.md, "Simulation").
+# created .venv); about 6 h on the 2-core CPU machine (simulation ~20 frames/s with --workers 2) (docs/performance.md, "Simulation").
 # The HDF5 files take about 93 MB per 10 s episode (the raw episodes 3 MB): all six datasets would need about 110 GB,
 # more than the ~100 GB this machine's disk holds beside the frame caches, so the two training-only datasets stay raw
 # (sim_more 28 GB and sim_more2 49 GB as HDF5), and a conversion that the free space cannot hold stops the script
@@ -47,3 +48,4 @@ simulate sim_test 60 13
 simulate sim_more 300 14 raw
 simulate sim_fresh 48 16
 simulate sim_more2 520 15 raw
+simulate sim_more3 520 17 raw

@@ -9,9 +9,10 @@ while the later ones are still being simulated:
                                 trajectory, plus every seed-13 episode, seen and unseen objects kept apart (108)
         — these four once sim240_h5, sim_extra_h5 and sim_test_h5 exist;
     data/split_train_more.json  split_train.json plus sim_more's seen episodes (398) — once sim_more exists;
-    data/split_train_2x.json    split_train_more.json plus sim_more2's seen episodes (831) — once sim_more2 exists
-        — these two list raw episode folders for sim_more and sim_more2 (kept raw, too large as HDF5; `train`
-        decodes their frames into its frame cache);
+    data/split_train_2x.json    split_train_more.json plus sim_more2's seen episodes (831) — once sim_more2 exists;
+    data/split_train_3x.json    split_train_2x.json plus sim_more3's seen episodes — once sim_more3 exists
+        — these three list raw episode folders for sim_more, sim_more2 and sim_more3 (kept raw, too large as HDF5;
+        `train` decodes their frames into its frame cache);
     data/fresh/split.json       the seed-16 episodes, seen and unseen objects apart (never trained on) — once sim_fresh_h5 exists.
 
     python scripts/write_splits.py [--data data]
@@ -59,7 +60,8 @@ def write_splits(data: Path) -> tuple[list[str], list[str]]:
     """Write every split file whose datasets exist under `data`; (what was written, what waits and for what)."""
     data = data.resolve()
     main, extra, test = read(data, "sim240_h5"), read(data, "sim_extra_h5"), read(data, "sim_test_h5")
-    more, more2, fresh = read(data, "sim_more", raw=True), read(data, "sim_more2", raw=True), read(data, "sim_fresh_h5")
+    more, more2, more3 = (read(data, name, raw=True) for name in ("sim_more", "sim_more2", "sim_more3"))
+    fresh = read(data, "sim_fresh_h5")
     written: list[str] = []
     waiting: list[str] = []
     if fresh is None:
@@ -78,14 +80,16 @@ def write_splits(data: Path) -> tuple[list[str], list[str]]:
     held_out = {p for paths in held.values() for p in paths}
     trained = [("split_train.json", split)]
     if more is None:
-        waiting.append("data/split_train_more.json and data/split_train_2x.json wait for sim_more")
+        waiting.append("data/split_train_more.json, split_train_2x.json and split_train_3x.json wait for sim_more")
     else:
         bigger = dict(split, train=split["train"] + seen(more))
         trained.append(("split_train_more.json", bigger))
-        if more2 is None:
-            waiting.append("data/split_train_2x.json waits for sim_more2")
-        else:
-            trained.append(("split_train_2x.json", dict(bigger, train=bigger["train"] + seen(more2))))
+        for name, added, needed in (("split_train_2x.json", more2, "sim_more2"), ("split_train_3x.json", more3, "sim_more3")):
+            if added is None:
+                waiting.append(f"data/{name} waits for {needed}")
+                break
+            bigger = dict(bigger, train=bigger["train"] + seen(added))
+            trained.append((name, bigger))
     for name, training in trained:
         if leak := held_out & set(training["train"]):
             raise SystemExit(f"{name} would train on {len(leak)} held-out trajectories, e.g. {sorted(leak)[0]}")

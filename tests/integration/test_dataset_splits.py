@@ -46,7 +46,7 @@ def test_the_held_out_set_and_the_first_training_lists_come_before_the_later_dat
         [str(data / "sim_extra_h5" / p) for p in ("e1", "e2", "e3")]  # sim_extra's seen episodes; never e4
     assert len(train["test_unseen"]) == 3 and len(read(data / "split_eval.json")["test_unseen"]) == 2
     assert not (data / "split_train_more.json").exists() and not (data / "fresh").exists()
-    assert "split_train_more.json and data/split_train_2x.json wait for sim_more" in done.stdout
+    assert "split_train_more.json, split_train_2x.json and split_train_3x.json wait for sim_more" in done.stdout
 
     dataset(data, "sim_more", train=["S/t/m1.hdf5"], test_unseen=["S/t/mu.hdf5"])  # raw: its folders are listed
     dataset(data, "sim_fresh_h5", train=["f2"], test_seen=["f1"], test_unseen=["fu"])
@@ -59,9 +59,16 @@ def test_the_held_out_set_and_the_first_training_lists_come_before_the_later_dat
     assert "split_train_2x.json waits for sim_more2" in done.stdout
 
     dataset(data, "sim_more2", train=["S/t/n1.hdf5", "S/t/n2.hdf5"], val=["S/t/n3.hdf5"])  # raw: its folders are listed
-    assert run(data).returncode == 0
+    done = run(data)
+    assert done.returncode == 0
     assert read(data / "split_train_2x.json")["train"][-4:] == [str(data / "sim_more" / "S" / "t" / "m1")] + \
         [str(data / "sim_more2" / "S" / "t" / n) for n in ("n1", "n2", "n3")]
+    assert "split_train_3x.json waits for sim_more3" in done.stdout and not (data / "split_train_3x.json").exists()
+
+    dataset(data, "sim_more3", test_seen=["S/t/o1.hdf5"], test_unseen=["S/t/ou.hdf5"])
+    assert run(data).returncode == 0
+    assert read(data / "split_train_3x.json")["train"] == read(data / "split_train_2x.json")["train"] + \
+        [str(data / "sim_more3" / "S" / "t" / "o1")]  # its seen episodes; never ou
 
 
 def test_a_training_list_that_holds_a_held_out_trajectory_is_refused(tmp_path):
