@@ -19,9 +19,9 @@
 # 67 test_seen, 41 test_unseen).
 # A step whose output is there is skipped. Run from the repository root after `make test` (or any command that
 # created .venv); about 6 h on the 2-core CPU machine (simulation ~20 frames/s with --workers 2) (docs/performance.md, "Simulation").
-# The HDF5 files take about 93 MB per 10 s episode (the raw episodes 3 MB): all six datasets would need about 110 GB,
-# more than the ~100 GB this machine's disk holds beside the frame caches, so the two training-only datasets stay raw
-# (sim_more 28 GB and sim_more2 49 GB as HDF5), and a conversion that the free space cannot hold stops the script
+# The HDF5 files take about 93 MB per 10 s episode (the raw episodes 3 MB): all seven datasets would need about
+# 160 GB, more than the ~100 GB this machine's disk holds beside the frame caches, so the three training-only datasets
+# stay raw (sim_more 28 GB, sim_more2 and sim_more3 49 GB each as HDF5), and a conversion that the free space cannot hold stops the script
 # before it starts, said in one line.
 set -euo pipefail
 TA=.venv/bin/touchanything

@@ -51,8 +51,11 @@ def relative(folder: Path, data: Path, paths: list[str]) -> list[str]:
 
 
 def write(path: Path, split: dict[str, list[str]], written: list[str]) -> None:
+    """Write `split` to `path` atomically (a temporary file beside it, renamed over it), and say so in `written`."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(split, indent=1))
+    temporary = path.with_name(f".{path.name}.tmp")
+    temporary.write_text(json.dumps(split, indent=1))
+    temporary.replace(path)
     written.append(f"{path} ({', '.join(f'{key} {len(split[key])}' for key in SPLITS)})")
 
 
@@ -84,9 +87,11 @@ def write_splits(data: Path) -> tuple[list[str], list[str]]:
     else:
         bigger = dict(split, train=split["train"] + seen(more))
         trained.append(("split_train_more.json", bigger))
-        for name, added, needed in (("split_train_2x.json", more2, "sim_more2"), ("split_train_3x.json", more3, "sim_more3")):
+        steps = [("split_train_2x.json", more2, "sim_more2"), ("split_train_3x.json", more3, "sim_more3")]
+        for step, (name, added, needed) in enumerate(steps):
             if added is None:
-                waiting.append(f"data/{name} waits for {needed}")
+                later = [n for n, _, _ in steps[step:]]
+                waiting.append(f"data/{' and '.join(later)} wait{'s' if len(later) == 1 else ''} for {needed}")
                 break
             bigger = dict(bigger, train=bigger["train"] + seen(added))
             trained.append((name, bigger))

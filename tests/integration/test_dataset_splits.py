@@ -56,17 +56,18 @@ def test_the_held_out_set_and_the_first_training_lists_come_before_the_later_dat
     assert read(data / "fresh" / "split.json") == {"train": [], "val": [],
                                                   "test_seen": ["../sim_fresh_h5/f1", "../sim_fresh_h5/f2"],
                                                   "test_unseen": ["../sim_fresh_h5/fu"]}
-    assert "split_train_2x.json waits for sim_more2" in done.stdout
+    assert "split_train_2x.json and split_train_3x.json wait for sim_more2" in done.stdout
 
     dataset(data, "sim_more2", train=["S/t/n1.hdf5", "S/t/n2.hdf5"], val=["S/t/n3.hdf5"])  # raw: its folders are listed
     done = run(data)
     assert done.returncode == 0
     assert read(data / "split_train_2x.json")["train"][-4:] == [str(data / "sim_more" / "S" / "t" / "m1")] + \
         [str(data / "sim_more2" / "S" / "t" / n) for n in ("n1", "n2", "n3")]
-    assert "split_train_3x.json waits for sim_more3" in done.stdout and not (data / "split_train_3x.json").exists()
+    assert "data/split_train_3x.json waits for sim_more3" in done.stdout and not (data / "split_train_3x.json").exists()
 
     dataset(data, "sim_more3", test_seen=["S/t/o1.hdf5"], test_unseen=["S/t/ou.hdf5"])
     assert run(data).returncode == 0
+    assert not list(data.rglob(".*.tmp"))  # each list renamed into place
     assert read(data / "split_train_3x.json")["train"] == read(data / "split_train_2x.json")["train"] + \
         [str(data / "sim_more3" / "S" / "t" / "o1")]  # its seen episodes; never ou
 
