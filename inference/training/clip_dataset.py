@@ -103,19 +103,20 @@ class ClipDataset(Dataset):
     only on the index (no random numbers are drawn), so any number of workers yields the same batches."""
 
     def __init__(self, files: list[Path], size: int, pose_source: str = "wilor", fallback: str | None = None,
-                 blank: bool = False, cache: FrameCache | None = None, on_episode=None) -> None:
-        """`cache`: frames from it (entries built here, before any worker starts); `on_episode()` is called
-        after each trajectory is ready (a progress bar)."""
-        self.episodes = []
+                 blank: bool = False, cache: FrameCache | None = None, on_episode=None, workers: int = 1) -> None:
+        """`cache`: frames from it (its missing entries built here in `workers` processes, before any loader worker
+        starts); `on_episode()` is called after each trajectory is ready (a progress bar)."""
         self.cache = None if blank else cache
+        if self.cache is None and not blank and (folder := next((f for f in files if Path(f).is_dir()), None)):
+            raise UserError(f"{folder}: a raw episode folder trains from the frame cache, and there is none")
+        self.episodes = []
         for f in files:
-            episode = load_episode(f, pose_source, fallback)
-            if self.cache is not None:  # a raw episode's videos may decode fewer frames than they declare
-                episode = episode.cut(self.cache.length(f, episode.views))
-            elif not blank and Path(f).is_dir():
-                raise UserError(f"{f}: a raw episode folder trains from the frame cache, and there is none")
-            self.episodes.append(episode)
-            on_episode and on_episode()
+            self.episodes.append(load_episode(f, pose_source, fallback))
+            if self.cache is None and on_episode:
+                on_episode()
+        if self.cache is not None:  # a raw episode's videos may decode fewer frames than they declare
+            self.cache.build([(f, e.views) for f, e in zip(files, self.episodes)], workers, on_episode)
+            self.episodes = [e.cut(self.cache.length(f, e.views)) for f, e in zip(files, self.episodes)]
         self.size, self.blank = size, blank
         self.offsets = np.arange(CLIP_LENGTH) * FRAME_INTERVAL
         self.items = [(e, s) for e, ep in enumerate(self.episodes) for s in clip_starts(len(ep.poses), SPAN)]

@@ -17,8 +17,9 @@ views: 3.4 MB at 64 px), a clip of 8 frames read in about 1 ms.
 - **Atomic:** an entry is written under a marked temporary name (`core.temporary_files`) and renamed when
   complete; an interrupted build leaves no entry: its temporary file is removed at once, or, when the process was
   killed, by the next run that opens the cache (named on stderr).
-- **Built once:** an entry is built under the folder's lock (`.build.lock`), so two trainings side by side on one
-  dataset decode each trajectory once, the second waiting for the first's entry (said once on stderr).
+- **Built once, in parallel:** entries are built under the folder's lock (`.build.lock`), so two trainings side by
+  side on one dataset decode each trajectory once, the second waiting for the first's entries (said once on stderr);
+  `build` decodes a run's missing entries in as many processes as the run has torch threads.
 - **Per process:** entries are opened on first use in each process; a forked DataLoader worker opens its own
   and never reads through a handle it inherited.
 """
@@ -32,6 +33,8 @@ import os
 import sys
 import tempfile
 from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
 from pathlib import Path
 
 import h5py
@@ -100,6 +103,26 @@ def write_entry(path: Path, views: tuple[str, ...], size: int, target: Path) -> 
             data[i] = frame
 
 
+def _write_atomically(target: Path, write: Callable[[Path], None]) -> None:
+    """`write(path)` creates a marked temporary file beside `target`, renamed to it when complete (removed on
+    error)."""
+    temporary = temporary_path(target)
+    mark(temporary, "file")
+    try:
+        write(temporary)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        unmark(temporary)
+        raise
+    os.replace(temporary, target)
+    unmark(temporary)
+
+
+def _build_entry(path: Path, views: tuple[str, ...], size: int, target: Path) -> None:
+    """Write the entry `target` of a trajectory's `views` at `size` px (in a worker process or in this one)."""
+    _write_atomically(target, lambda temporary: write_entry(path, views, size, temporary))
+
+
 class FrameCache:
     """Frames of trajectories (HDF5 files, raw episode folders) at `size` px under `folder` (`<root>/.frame_cache`)."""
 
@@ -132,23 +155,9 @@ class FrameCache:
         except (OSError, ValueError):
             return {}
 
-    def _write(self, target: Path, write) -> None:
-        """`write(path)` creates a marked temporary file beside `target`, renamed to it when complete (removed on
-        error)."""
-        temporary = temporary_path(target)
-        mark(temporary, "file")
-        try:
-            write(temporary)
-        except BaseException:
-            temporary.unlink(missing_ok=True)
-            unmark(temporary)
-            raise
-        os.replace(temporary, target)
-        unmark(temporary)
-
     def _write_index(self) -> None:
         text = json.dumps(self._index, indent=1, sort_keys=True)
-        self._write(self.folder / INDEX, lambda path: path.write_text(text))
+        _write_atomically(self.folder / INDEX, lambda path: path.write_text(text))
 
     def digest(self, path: Path) -> str:
         """A trajectory's content: an HDF5 file's SHA-1, or for a raw episode folder the SHA-1 of its videos' names
@@ -175,21 +184,49 @@ class FrameCache:
     def entry(self, path: Path, views: tuple[str, ...]) -> Path:
         """The cache file of a trajectory's `views` (an HDF5 file or a raw episode folder), built now when missing."""
         path = Path(path)
-        if path in self._paths:
-            return self._paths[path]
-        name = f"{self.digest(path)}.{'-'.join(views)}.{self.size}px.h5"
-        target = self.folder / name
-        if target.is_file():
-            self.reused += 1
-        else:
-            with self._building():
-                if target.is_file():  # another process built it while this one waited
-                    self.reused += 1
-                else:
-                    self._write(target, lambda temporary: write_entry(path, views, self.size, temporary))
-                    self.built += 1
+        if path not in self._paths:
+            self.build([(path, views)])
+        return self._paths[path]
+
+    def build(self, trajectories: list[tuple[Path, tuple[str, ...]]], workers: int = 1,
+              on_entry: Callable[[], None] | None = None) -> None:
+        """Make sure every (trajectory, views) has its entry: the missing ones are decoded in `workers` processes
+        (in this one when 1) under the folder's build lock; `on_entry()` is called as each one is there."""
+        missing = []
+        for path, views in trajectories:
+            path = Path(path)
+            target = self.folder / f"{self.digest(path)}.{'-'.join(views)}.{self.size}px.h5"
+            if target.is_file():
+                self._there(path, target, on_entry, built=False)
+            else:
+                missing.append((path, views, target))
+        if not missing:
+            return
+        with self._building():
+            for path, _, target in [m for m in missing if m[2].is_file()]:  # built by another run meanwhile
+                self._there(path, target, on_entry, built=False)
+            missing = [m for m in missing if not m[2].is_file()]
+            if workers <= 1 or len(missing) == 1:
+                for path, views, target in missing:
+                    _build_entry(path, views, self.size, target)
+                    self._there(path, target, on_entry, built=True)
+                return
+            with ProcessPoolExecutor(min(workers, len(missing)), mp_context=get_context("spawn")) as pool:
+                futures = {pool.submit(_build_entry, path, views, self.size, target): (path, target)
+                           for path, views, target in missing}
+                try:
+                    for future in as_completed(futures):
+                        future.result()
+                        self._there(*futures[future], on_entry, built=True)
+                except BaseException:
+                    pool.shutdown(cancel_futures=True)  # the entries in progress are finished, the rest not started
+                    raise
+
+    def _there(self, path: Path, target: Path, on_entry: Callable[[], None] | None, built: bool) -> None:
+        """Record that `path`'s entry `target` exists (built now or found), and tell `on_entry`."""
         self._paths[path] = target
-        return target
+        self.built, self.reused = self.built + built, self.reused + (not built)
+        on_entry and on_entry()
 
     @contextlib.contextmanager
     def _building(self) -> Iterator[None]:

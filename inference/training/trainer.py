@@ -93,7 +93,7 @@ class Trainer:
         def dataset(files: list[Path], bar: tqdm) -> ClipDataset:
             d = config.data
             return ClipDataset(files, c.image_size, d.pose_source, d.fallback_pose_source, c.blank_images, frame_cache,
-                               on_episode=lambda: bar.update(1))
+                               on_episode=lambda: bar.update(1), workers=torch.get_num_threads())
 
         if self.world > 1 and self.rank != 0:
             dist.barrier()  # rank 0 builds the missing frame-cache entries first; the others reuse them

@@ -20,7 +20,7 @@ from touchanything.core.errors import UserError
 from touchanything.inference.model.preprocess import resize_frame
 from touchanything.inference.training import frame_cache as frame_cache_module
 from touchanything.inference.training.clip_dataset import ClipDataset, clip_loader, load_episode
-from touchanything.inference.training.frame_cache import BUILD_LOCK, CACHE_DIR, FrameCache, write_entry
+from touchanything.inference.training.frame_cache import BUILD_LOCK, CACHE_DIR, FRAMES, FrameCache, write_entry
 
 
 @pytest.fixture
@@ -277,3 +277,33 @@ def test_a_raw_video_cut_short_cuts_the_trajectory_where_it_stops_decoding(raw_r
     assert 0 < decoded < load_episode(folder, "wilor").poses.shape[0]
     episode = ClipDataset([folder], 56, cache=FrameCache.beside(root, 56)).episodes[0]
     assert episode.poses.shape[0] == episode.pressure.shape[0] == decoded
+
+
+def test_entries_built_in_worker_processes_equal_those_built_here(raw_root, root, tmp_path, monkeypatch):
+    """A training's missing entries are decoded in as many processes as it has torch threads (not in this one: its
+    resizing fails here once the serial build is done): the frames equal those decoded in this process, byte for
+    byte, every entry counts once and the progress ticks once each."""
+    folders, files = raw_twins(raw_root, root)
+    views = ("ego", "wrist_left", "wrist_right")
+    serial, parallel = FrameCache(tmp_path / "serial", 56), FrameCache(tmp_path / "parallel", 56)
+    serial.folder.mkdir(), parallel.folder.mkdir()
+    ticks = []
+    serial.build([(f, views) for f in folders + files])
+    monkeypatch.setattr(frame_cache_module, "resize_frame", lambda image, size: 1 / 0)
+    parallel.build([(f, views) for f in folders + files], workers=2, on_entry=lambda: ticks.append(1))
+    assert (parallel.built, parallel.reused, len(ticks)) == (len(folders) + len(files), 0, len(folders) + len(files))
+    for path in folders + files:
+        with h5py.File(serial.entry(path, views), "r") as a, h5py.File(parallel.entry(path, views), "r") as b:
+            assert np.array_equal(a[FRAMES][()], b[FRAMES][()])
+    again = FrameCache(parallel.folder, 56)
+    again.build([(f, views) for f in files], workers=2)
+    assert (again.built, again.reused) == (0, len(files))
+
+
+def test_a_trajectory_a_worker_cannot_decode_is_one_line_and_leaves_no_file(raw_root, root):
+    folders, _ = raw_twins(raw_root, root)
+    (folders[1] / "right.mp4").unlink()
+    cache = FrameCache.beside(root, 56)
+    with pytest.raises(UserError, match=r"no readable right\.mp4; cannot train on its frames"):
+        cache.build([(f, ("ego", "wrist_left", "wrist_right")) for f in folders], workers=2)
+    assert not [p for p in cache.folder.iterdir() if ".partial-" in p.name]
