@@ -18,7 +18,8 @@
 # heldout/split.json, THE HELD-OUT SET of the atlas (`touchanything bench --data data/heldout`; 108 trajectories:
 # 67 test_seen, 41 test_unseen).
 # A step whose output is there is skipped. Run from the repository root after `make test` (or any command that
-# created .venv); about 6 h on the 2-core CPU machine (simulation ~20 frames/s with --workers 2) (docs/performance.md, "Simulation").
+# created .venv); about 2 h 30 min on the idle 2-core CPU machine (2026-12-06: the first six datasets, 1,192 episodes, in
+# 1 h 48 min; simulation 62–67 frames/s with --workers 2, conversion about 1.7 s per episode) (docs/performance.md, "Simulation").
 # The HDF5 files take about 93 MB per 10 s episode (the raw episodes 3 MB): all seven datasets would need about
 # 160 GB, more than the ~100 GB this machine's disk holds beside the frame caches, so the three training-only datasets
 # stay raw (sim_more 28 GB, sim_more2 and sim_more3 49 GB each as HDF5), and a conversion that the free space cannot hold stops the script
