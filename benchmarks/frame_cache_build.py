@@ -38,6 +38,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
+    if missing := [str(path) for path in args.trajectories if not path.exists()]:
+        parser.error(f"no such trajectory: {', '.join(missing)}")
     times: dict[int, list[float]] = {w: [] for w in args.workers}
     rows = []
     for round_ in range(args.rounds):
