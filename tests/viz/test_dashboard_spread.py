@@ -1,18 +1,21 @@
-"""The dashboard's spread toggle on a real X server (Xvfb): with a 2-member ensemble (pico and a perturbed pico) it
-is enabled and, switched on, the predicted map shows the shown prediction's members' spread on the spread's scale,
+"""The dashboard's spread toggle on a real X server (Xvfb): with a 2-member ensemble (pico and a perturbed pico that
+presses) it is enabled and, switched on, the predicted map shows the shown prediction's members' spread on the spread's scale,
 titled so; with a single model it is disabled, says why, and the map stays the predicted pressure. One short
 replay of the conftest episode (40 frames) per dashboard, each in a fresh process."""
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import dearpygui.dearpygui as dpg
 import numpy as np
+import torch
 
 from tests.inference.test_ensemble import PICO, ensemble_folder, perturbed_pico
 from tests.timing.test_dashboard import drive_in_dashboard, in_fresh_process, wait_for
 from touchanything.app.sessions.engine_choice import choose
 from touchanything.app.sessions.replay_session import ReplaySession
+from touchanything.inference.model.checkpoint import read_checkpoint
 from touchanything.viz.colormap import PRESSURE_LUT, apply
 from touchanything.viz.dashboard.dashboard import CELL, Dashboard
 from touchanything.viz.pressure_panel import AXES, MAP_GAP, MAP_TITLES, SPREAD_HIGH, SPREAD_TITLE, unposed_as_nan
@@ -45,6 +48,20 @@ def drive(session: ReplaySession, dashboard: Dashboard, found: dict) -> None:
         dashboard.close()
 
 
+def pressing_pico(folder: Path) -> Path:
+    """`perturbed_pico` whose cells' logits are raised by LOGIT_SHIFT: it predicts pressure wherever pico predicts
+    almost none, so the two members' spread shows on every frame of any episode (pico alone predicts ~0 on the
+    conftest episode's synthetic frames, where a spread and a pressure map would both read as empty)."""
+    perturbed_pico(folder)
+    data = read_checkpoint(folder / "best_model.pth")
+    data["model_state_dict"]["decoder.cells.3.bias"] += LOGIT_SHIFT
+    torch.save(data, folder / "best_model.pth")
+    return folder
+
+
+LOGIT_SHIFT = 8.0
+
+
 def cell_colours(image: np.ndarray, hand: int) -> np.ndarray:
     """(21, 21, 3): the colour at the centre of each cell of one hand's map."""
     centres = np.arange(21) * CELL + CELL // 2
@@ -52,7 +69,7 @@ def cell_colours(image: np.ndarray, hand: int) -> np.ndarray:
 
 
 def test_the_spread_toggle_shows_the_shown_predictions_spread(dashboard_display, episode_dir, tmp_path):
-    member = perturbed_pico(tmp_path / "member")
+    member = pressing_pico(tmp_path / "member")
     ensemble = choose(ensemble_folder(tmp_path, [member]), members=2, device="cpu")
     found = in_fresh_process(drive_in_dashboard, episode_dir, ensemble, drive)
     assert "error" not in found, found["error"]
