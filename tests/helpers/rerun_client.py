@@ -15,6 +15,8 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
+from helpers.terminal_signals import default_sigint
+
 RERUN = Path(sys.executable).parent / "rerun"
 
 
@@ -30,7 +32,8 @@ def rerun_client(data_url: str, out: Path) -> Iterator[subprocess.Popen]:
     """The client saving what `data_url` serves into `out`, running for the `with` block; on leaving, its whole
     process group is killed (whatever it did: the caller waits for a clean end inside the block)."""
     client = subprocess.Popen([str(RERUN), data_url, "--save", str(out), "--port", str(free_port())],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+                              preexec_fn=default_sigint)
     try:
         yield client
     finally:

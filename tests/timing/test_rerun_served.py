@@ -18,6 +18,7 @@ import pytest
 from rerun.chunk import RrdReader
 
 from helpers.rerun_client import free_port, interrupt, rerun_client
+from helpers.terminal_signals import default_sigint
 from touchanything.core.tactile_layout import TactileLayout
 from touchanything.devices.episodes.episode_loader import open_episode
 from touchanything.viz.frame_facts import frame_facts
@@ -58,7 +59,7 @@ def test_a_served_replay_holds_every_row_of_the_file(tmp_path):
                "--rerun-serve", str(free_port())]
     headless = {k: v for k, v in os.environ.items() if k != "DISPLAY"}  # the recording only: no dashboard, no video
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=headless,
-                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                               preexec_fn=default_sigint)
     try:
         lines: list[str] = []
         while not any("still serving at" in line for line in lines) and process.poll() is None:

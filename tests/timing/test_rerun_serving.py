@@ -16,6 +16,7 @@ from rerun.chunk import RrdReader
 
 from helpers.rerun_client import free_port, rerun_client
 from helpers.rerun_reading import recording_rows
+from helpers.terminal_signals import default_sigint
 from touchanything.app.cli import main
 
 
@@ -31,7 +32,7 @@ def test_serving_the_recording_to_the_web_viewer(episode_dir, tmp_path):
     # Ctrl-C as in a terminal, whatever SIGINT disposition or mask the test process has (the child inherits both)
     stderr = (tmp_path / "stderr.txt").open("w")
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=stderr, text=True, env=headless,
-                               preexec_fn=_default_sigint)
+                               preexec_fn=default_sigint)
     try:
         lines = []
         deadline = time.monotonic() + 300
@@ -89,8 +90,3 @@ def test_serving_elsewhere_is_asked_for_and_said(capsys, episode_dir, tmp_path):
         assert f"the web viewer's port: 0.0.0.0:{busy.getsockname()[1]} is already in use" in capsys.readouterr().err
     assert not (tmp_path / "v.mp4").exists()
 
-
-def _default_sigint() -> None:
-    """In the child before exec: SIGINT delivered and handled by default (Python then raises KeyboardInterrupt)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
