@@ -27,8 +27,14 @@ def per_trajectory(runs: Path, model: str, held_out: str) -> dict[str, dict[str,
     """{trajectory path: {metric: causal value}} over both splits of the `held_out` set, with the split under "split"."""
     out = {}
     for split in SPLITS:
-        results = json.loads((runs / model / f"{held_out}_{split}" / "results.json").read_text())["results"]
-        rows = next(r for r in results if r["views"] == "all" and not r.get("pose_only") and not r.get("baseline"))
+        path = runs / model / f"{held_out}_{split}" / "results.json"
+        if not path.is_file():
+            raise SystemExit(f"held_out_table.py: no results of {model} on {held_out} {split}: {path} is missing "
+                             f"(touchanything eval ... --split {split} --views all --out {path.parent})")
+        results = json.loads(path.read_text())["results"]
+        rows = next((r for r in results if r["views"] == "all" and not r.get("pose_only") and not r.get("baseline")), None)
+        if rows is None:
+            raise SystemExit(f"held_out_table.py: {path} holds no result of the model on all views")
         for row in rows["trajectories"]:
             out[row["path"]] = {**{m: float(row["causal"][m]) for m, _ in METRICS}, "split": split}
     return out
@@ -45,6 +51,10 @@ def interval(value: tuple[float, float, float], signed: bool = False) -> str:
 def table(runs: Path, models: list[str], against: str | None, held_out: str = "heldout") -> list[str]:
     data = {m: per_trajectory(runs, m, held_out) for m in models + ([against] if against and against not in models else [])}
     paths = sorted(data[models[0]])
+    for model, values in data.items():
+        if sorted(values) != paths:
+            raise SystemExit(f"held_out_table.py: {model} and {models[0]} were evaluated on different trajectories "
+                             f"of {held_out}: the paired differences need the same ones")
     splits = [data[models[0]][p]["split"] for p in paths]
     groups = {split: [i for i, s in enumerate(splits) if s == split] for split in SPLITS}
     groups["both"] = list(range(len(paths)))

@@ -35,3 +35,20 @@ def test_the_fresh_set_is_read_from_its_own_folders(tmp_path):
     assert [fresh["new"][i].split(" ")[0] for i in (0, 2, 4)] == ["0.400", "0.900", "0.567"]  # (0.3 + 0.5 + 0.9) / 3
     assert fresh["new − ref"][4].split(" ")[0] == "+0.167"  # (0.1 + 0.1 + 0.3) / 3
     assert rows(tmp_path)["new"][4].split(" ")[0] == "0.100"  # the held-out set, the default
+
+
+def test_a_missing_or_mismatched_evaluation_is_one_line(tmp_path):
+    for model in ("ref", "new"):
+        write_results(tmp_path / model / "heldout_test_seen", {"s1": 0.2})
+    write_results(tmp_path / "ref" / "heldout_test_unseen", {"u1": 0.2})
+    missing = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "ref", "new", "--against", "ref"],
+                             capture_output=True, text=True)
+    assert missing.returncode == 1 and "Traceback" not in missing.stderr
+    assert missing.stderr.strip() == (f"held_out_table.py: no results of new on heldout test_unseen: "
+                                      f"{tmp_path / 'new' / 'heldout_test_unseen' / 'results.json'} is missing "
+                                      f"(touchanything eval ... --split test_unseen --views all --out "
+                                      f"{tmp_path / 'new' / 'heldout_test_unseen'})")
+    write_results(tmp_path / "new" / "heldout_test_unseen", {"u2": 0.2})
+    other = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "ref", "new", "--against", "ref"],
+                           capture_output=True, text=True)
+    assert other.returncode == 1 and other.stderr.count("\n") == 1 and "different trajectories" in other.stderr
