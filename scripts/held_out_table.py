@@ -27,14 +27,8 @@ def per_trajectory(runs: Path, model: str, held_out: str) -> dict[str, dict[str,
     """{trajectory path: {metric: causal value}} over both splits of the `held_out` set, with the split under "split"."""
     out = {}
     for split in SPLITS:
-        path = runs / model / f"{held_out}_{split}" / "results.json"
-        if not path.is_file():
-            raise SystemExit(f"held_out_table.py: no results of {model} on {held_out} {split}: {path} is missing "
-                             f"(touchanything eval ... --split {split} --views all --out {path.parent})")
-        results = json.loads(path.read_text())["results"]
-        rows = next((r for r in results if r["views"] == "all" and not r.get("pose_only") and not r.get("baseline")), None)
-        if rows is None:
-            raise SystemExit(f"held_out_table.py: {path} holds no result of the model on all views")
+        results = json.loads((runs / model / f"{held_out}_{split}" / "results.json").read_text())["results"]
+        rows = next(r for r in results if r["views"] == "all" and not r.get("pose_only") and not r.get("baseline"))
         for row in rows["trajectories"]:
             out[row["path"]] = {**{m: float(row["causal"][m]) for m, _ in METRICS}, "split": split}
     return out
@@ -90,7 +84,14 @@ def main() -> None:
     parser.add_argument("--against", help="the reference model of the paired differences")
     parser.add_argument("--set", default="heldout", choices=("heldout", "fresh"), help="the held-out set (default heldout)")
     args = parser.parse_args()
-    print("\n".join(table(args.runs, args.models, args.against, args.set)))
+    try:
+        print("\n".join(table(args.runs, args.models, args.against, args.set)))
+    except FileNotFoundError as exc:
+        raise SystemExit(f"held_out_table.py: {exc.filename} is missing (touchanything eval ... --views all --out "
+                         f"{Path(exc.filename).parent})") from None
+    except (ValueError, KeyError, StopIteration) as exc:
+        raise SystemExit(f"held_out_table.py: a results.json under {args.runs} is not eval's all-views results "
+                         f"({type(exc).__name__}: {exc})") from None
 
 
 if __name__ == "__main__":

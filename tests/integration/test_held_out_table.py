@@ -44,11 +44,16 @@ def test_a_missing_or_mismatched_evaluation_is_one_line(tmp_path):
     missing = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "ref", "new", "--against", "ref"],
                              capture_output=True, text=True)
     assert missing.returncode == 1 and "Traceback" not in missing.stderr
-    assert missing.stderr.strip() == (f"held_out_table.py: no results of new on heldout test_unseen: "
-                                      f"{tmp_path / 'new' / 'heldout_test_unseen' / 'results.json'} is missing "
-                                      f"(touchanything eval ... --split test_unseen --views all --out "
-                                      f"{tmp_path / 'new' / 'heldout_test_unseen'})")
+    missing_file = tmp_path / "new" / "heldout_test_unseen" / "results.json"
+    assert missing.stderr.strip() == (f"held_out_table.py: {missing_file} is missing (touchanything eval ... "
+                                      f"--views all --out {missing_file.parent})")
     write_results(tmp_path / "new" / "heldout_test_unseen", {"u2": 0.2})
     other = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "ref", "new", "--against", "ref"],
                            capture_output=True, text=True)
     assert other.returncode == 1 and other.stderr.count("\n") == 1 and "different trajectories" in other.stderr
+    (tmp_path / "new" / "heldout_test_unseen" / "results.json").write_text("{half")
+    damaged = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "ref", "new", "--against", "ref"],
+                             capture_output=True, text=True)
+    assert damaged.returncode == 1 and "Traceback" not in damaged.stderr
+    assert damaged.stderr.startswith(f"held_out_table.py: a results.json under {tmp_path} is not eval's all-views "
+                                     "results (JSONDecodeError: ")
