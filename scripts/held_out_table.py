@@ -89,7 +89,9 @@ def main() -> None:
     except FileNotFoundError as exc:
         raise SystemExit(f"held_out_table.py: {exc.filename} is missing (touchanything eval ... --views all --out "
                          f"{Path(exc.filename).parent})") from None
-    except (ValueError, KeyError, StopIteration) as exc:
+    except OSError as exc:
+        raise SystemExit(f"held_out_table.py: {exc.filename} cannot be read ({exc.strerror})") from None
+    except (ValueError, KeyError, TypeError, StopIteration) as exc:
         raise SystemExit(f"held_out_table.py: a results.json under {args.runs} is not eval's all-views results "
                          f"({type(exc).__name__}: {exc})") from None
 

@@ -57,3 +57,13 @@ def test_a_missing_or_mismatched_evaluation_is_one_line(tmp_path):
     assert damaged.returncode == 1 and "Traceback" not in damaged.stderr
     assert damaged.stderr.startswith(f"held_out_table.py: a results.json under {tmp_path} is not eval's all-views "
                                      "results (JSONDecodeError: ")
+    (tmp_path / "new" / "heldout_test_unseen" / "results.json").write_text("[]")
+    other_shape = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "ref", "new", "--against", "ref"],
+                                 capture_output=True, text=True)
+    assert other_shape.returncode == 1 and "(TypeError: " in other_shape.stderr and "Traceback" not in other_shape.stderr
+    (tmp_path / "new" / "heldout_test_unseen" / "results.json").unlink()
+    (tmp_path / "new" / "heldout_test_unseen" / "results.json").mkdir()
+    folder = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path), "ref", "new", "--against", "ref"],
+                            capture_output=True, text=True)
+    assert folder.stderr.strip() == (f"held_out_table.py: {tmp_path / 'new' / 'heldout_test_unseen' / 'results.json'} "
+                                     "cannot be read (Is a directory)")
